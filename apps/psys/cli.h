@@ -1,0 +1,44 @@
+/* Shared pieces of the psys command-line program. */
+#ifndef PSYS_CLI_H
+#define PSYS_CLI_H
+
+#include "psys/psys.h"
+
+#include <stdio.h>
+
+/** Exit statuses of DESIGN §3. */
+enum { EXIT_OK = 0, EXIT_RUN_FAILED = 1, EXIT_BAD_INPUT = 2 };
+
+/** Print "psys: " + message + newline to standard error. */
+void cli_error(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+
+/** An output file written under a temporary name and renamed when complete. */
+typedef struct outfile {
+    char *path;  /* final name */
+    char *tmp;   /* temporary name in the same directory */
+    FILE *fp;
+} outfile;
+
+/** Create the temporary file for path; on failure prints a message and returns -1. */
+int outfile_open(outfile *o, const char *path, const char *what);
+/** Flush, close and rename into place; returns -1 (message printed) on failure. */
+int outfile_commit(outfile *o);
+/** Close and delete the temporary file (no-op if not open). */
+void outfile_abort(outfile *o);
+
+/** Parse a strictly positive finite double; returns -1 if s is not one. */
+int parse_positive(const char *s, double *out);
+/** Parse a non-negative finite double. */
+int parse_nonneg(const char *s, double *out);
+/** Parse an integer in [min, max]. */
+int parse_int(const char *s, long long min, long long max, long long *out);
+
+int cmd_run(int argc, char **argv);
+int cmd_check(int argc, char **argv);
+int cmd_bench(int argc, char **argv);
+
+#endif

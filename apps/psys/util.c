@@ -1,0 +1,120 @@
+/* Messages, number parsing and atomic output files for the CLI. */
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+void cli_error(const char *fmt, ...)
+{
+    va_list ap;
+    fputs("psys: ", stderr);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fputc('\n', stderr);
+}
+
+int outfile_open(outfile *o, const char *path, const char *what)
+{
+    memset(o, 0, sizeof *o);
+    size_t len = strlen(path);
+    o->path = malloc(len + 1);
+    o->tmp = malloc(len + 32);
+    if (!o->path || !o->tmp) {
+        cli_error("%s %s: out of memory", what, path);
+        outfile_abort(o);
+        return -1;
+    }
+    memcpy(o->path, path, len + 1);
+    snprintf(o->tmp, len + 32, "%s.psys-tmp-XXXXXX", path);
+    int fd = mkstemp(o->tmp);
+    if (fd < 0) {
+        cli_error("%s %s: cannot create: %s", what, path, strerror(errno));
+        free(o->tmp);
+        o->tmp = NULL;
+        outfile_abort(o);
+        return -1;
+    }
+    o->fp = fdopen(fd, "w");
+    if (!o->fp) {
+        cli_error("%s %s: cannot open: %s", what, path, strerror(errno));
+        close(fd);
+        outfile_abort(o);
+        return -1;
+    }
+    /* mkstemp makes 0600 files; give results the usual permissions. */
+    mode_t mask = umask(0);
+    umask(mask);
+    fchmod(fd, 0666 & ~mask);
+    return 0;
+}
+
+int outfile_commit(outfile *o)
+{
+    if (!o->fp)
+        return 0;
+    int bad = ferror(o->fp) || fflush(o->fp) != 0;
+    bad |= fclose(o->fp) != 0;
+    o->fp = NULL;
+    if (bad || rename(o->tmp, o->path) != 0) {
+        cli_error("%s: cannot write: %s", o->path, strerror(errno));
+        remove(o->tmp);
+        free(o->tmp);
+        free(o->path);
+        o->tmp = o->path = NULL;
+        return -1;
+    }
+    free(o->tmp);
+    free(o->path);
+    o->tmp = o->path = NULL;
+    return 0;
+}
+
+void outfile_abort(outfile *o)
+{
+    if (o->fp) {
+        fclose(o->fp);
+        o->fp = NULL;
+    }
+    if (o->tmp)
+        remove(o->tmp);
+    free(o->tmp);
+    free(o->path);
+    o->tmp = o->path = NULL;
+}
+
+int parse_nonneg(const char *s, double *out)
+{
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || *end || errno || !isfinite(v) || v < 0)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int parse_positive(const char *s, double *out)
+{
+    double v;
+    if (parse_nonneg(s, &v) != 0 || v == 0)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int parse_int(const char *s, long long min, long long max, long long *out)
+{
+    char *end;
+    errno = 0;
+    long long v = strtoll(s, &end, 10);
+    if (end == s || *end || errno || v < min || v > max)
+        return -1;
+    *out = v;
+    return 0;
+}

@@ -1,0 +1,343 @@
+/* psys — particle-system dynamics after Witkin's "Particle System Dynamics".
+ *
+ * Two views of one model (the notes' §3):
+ *   - from outside, a psys_ode: a point in phase space whose derivative can be
+ *     evaluated at will; solvers (psys_solver) see only that;
+ *   - from inside, a psys_system: particles stored structure-of-arrays plus a
+ *     list of heterogeneous force objects (psys_force_class).
+ *
+ * Rules: no global mutable state; every fallible call returns a psys_status
+ * and leaves a message (psys_error, or the object's last-error text); the
+ * library never prints and never exits.
+ */
+#ifndef PSYS_PSYS_H
+#define PSYS_PSYS_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdio.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Library version as "MAJOR.MINOR.PATCH". */
+#define PSYS_VERSION_STRING "0.1.0"
+
+/** Result of every fallible call. */
+typedef enum psys_status {
+    PSYS_OK = 0,          /**< success */
+    PSYS_ERR_INVALID,     /**< bad argument or bad scene */
+    PSYS_ERR_NOMEM,       /**< an allocation failed */
+    PSYS_ERR_IO,          /**< a file could not be read or written */
+    PSYS_ERR_NONFINITE,   /**< the state became NaN or infinite */
+    PSYS_ERR_UNSUPPORTED  /**< a feature this build or object does not provide */
+} psys_status;
+
+/** An error code with its message (no "psys:" prefix, no newline). */
+typedef struct psys_error {
+    psys_status code;   /**< PSYS_OK when nothing failed */
+    char message[512];  /**< human-readable description */
+} psys_error;
+
+/** Short name of a status code ("ok", "invalid", ...). */
+const char *psys_status_name(psys_status s);
+
+/* ------------------------------------------------------------------ */
+/* ODE interface (notes §3): size, get state, set state, derivative,   */
+/* clock. Solvers know nothing else about the system they step.        */
+/* ------------------------------------------------------------------ */
+
+/** A first-order ODE y' = f(t, y) of fixed size, seen by solvers. */
+typedef struct psys_ode {
+    size_t size;  /**< length of the state vector */
+    /** If > 0 the system is second order: y = [q | p] with q of length
+     *  npos, and q' = p exactly (what symplectic solvers rely on). */
+    size_t npos;
+    void *ctx;    /**< passed back to every callback */
+    /** Copy the current state into y (length size). */
+    void (*get_state)(void *ctx, double *y);
+    /** Make y (length size) the current state. */
+    void (*set_state)(void *ctx, const double *y);
+    /** Current time of the system's clock. */
+    double (*get_time)(void *ctx);
+    /** Set the system's clock. */
+    void (*set_time)(void *ctx, double t);
+    /** Evaluate ydot = f(t, y); must not change the current state. */
+    psys_status (*derivative)(void *ctx, double t, const double *y, double *ydot);
+    /** Optional (may be NULL): overwrite prescribed components of y with
+     *  their values at time t (controlled particles, ERRATA). Solvers call it
+     *  on every stage state before evaluating the derivative. */
+    void (*project)(void *ctx, double t, double *y);
+} psys_ode;
+
+/* ------------------------------------------------------------------ */
+/* Solvers                                                             */
+/* ------------------------------------------------------------------ */
+
+/** A solver instance bound to one psys_ode (owns its scratch buffers). */
+typedef struct psys_solver psys_solver;
+
+/** Number of registered solvers. */
+size_t psys_solver_count(void);
+/** Name of registered solver i ("euler", "midpoint", "rk4", ...), NULL past the end. */
+const char *psys_solver_name_at(size_t i);
+/** True if name is a registered solver. */
+bool psys_solver_exists(const char *name);
+
+/** Create a solver by name for ode (copied; ctx must outlive the solver). */
+psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_error *err);
+/** Free a solver (NULL is fine). */
+void psys_solver_destroy(psys_solver *s);
+/** The solver's registered name. */
+const char *psys_solver_name(const psys_solver *s);
+/** True for solvers that choose their own step size (rk45). */
+bool psys_solver_is_adaptive(const psys_solver *s);
+/** Order of accuracy of the solver (1 for euler, 4 for rk4, 5 for rk45). */
+int psys_solver_order(const psys_solver *s);
+
+/** Advance the ode by one step of at most h_max and store the step taken in
+ *  *h_taken (may be NULL). Fixed-step solvers take exactly h_max; adaptive
+ *  ones take min(h_max, their own proposal) after error control. Nothing
+ *  changes on failure; PSYS_ERR_NONFINITE means the new state would not be
+ *  finite (see psys_solver_bad_component). No allocation happens here. */
+psys_status psys_solver_step(psys_solver *s, double h_max, double *h_taken);
+/** Index of the first non-finite state component after PSYS_ERR_NONFINITE. */
+size_t psys_solver_bad_component(const psys_solver *s);
+/** Last error message of this solver. */
+const char *psys_solver_last_error(const psys_solver *s);
+
+/** Local error tolerance of adaptive solvers (absolute and relative). */
+psys_status psys_solver_set_tolerance(psys_solver *s, double tol);
+/** Step size the adaptive solver will try next (0 for fixed-step solvers). */
+double psys_solver_next_step(const psys_solver *s);
+/** Set the step size the adaptive solver will try next (restoring a checkpoint). */
+psys_status psys_solver_set_next_step(psys_solver *s, double h);
+/** Steps rejected by error control so far (adaptive solvers). */
+size_t psys_solver_rejected_steps(const psys_solver *s);
+
+/* ------------------------------------------------------------------ */
+/* Particle system                                                     */
+/* ------------------------------------------------------------------ */
+
+/** A particle system: SoA particles plus force objects. */
+typedef struct psys_system psys_system;
+
+/** Particle flag: fixed in place (anchor); never moved by a solver. */
+#define PSYS_PARTICLE_FIXED 1u
+
+/** Read-only view passed to force callbacks at one derivative evaluation. */
+typedef struct psys_force_eval {
+    int dim;                     /**< 2 or 3 */
+    size_t n;                    /**< number of particles */
+    double t;                    /**< time of the evaluation */
+    const double *x;             /**< positions, n*dim, particle-major */
+    const double *v;             /**< velocities, n*dim */
+    const double *mass;          /**< masses, n */
+    const double *inv_mass;      /**< 1/mass, 0 for fixed particles, n */
+    const unsigned char *flags;  /**< PSYS_PARTICLE_* flags, n */
+} psys_force_eval;
+
+/** Sink for force Jacobian blocks (see psys_jacobian_add). */
+typedef struct psys_jacobian psys_jacobian;
+
+/** Add dim×dim row-major blocks ∂f_i/∂x_j and ∂f_i/∂v_j (either may be NULL). */
+void psys_jacobian_add(psys_jacobian *J, size_t i, size_t j,
+                       const double *dfdx, const double *dfdv);
+
+/** Behaviour of one force type (Chipmunk-style class of function pointers). */
+typedef struct psys_force_class {
+    const char *name;  /**< type name, e.g. "spring" */
+    /** Add this object's forces into f (n*dim accumulators). */
+    void (*apply)(void *data, const psys_force_eval *e, double *f);
+    /** Potential energy, or NULL if the force is not conservative. */
+    double (*energy)(void *data, const psys_force_eval *e);
+    /** Add Jacobian blocks into J, or NULL if not provided. */
+    void (*jacobian)(void *data, const psys_force_eval *e, psys_jacobian *J);
+    /** Free data (may be NULL). */
+    void (*destroy)(void *data);
+} psys_force_class;
+
+/** Create an empty system of dimension 2 or 3. */
+psys_system *psys_system_create(int dim, psys_error *err);
+/** Free a system and its forces (NULL is fine). */
+void psys_system_destroy(psys_system *sys);
+/** Last error message of this system ("" when none). */
+const char *psys_system_last_error(const psys_system *sys);
+
+/** Spatial dimension (2 or 3). */
+int psys_system_dim(const psys_system *sys);
+/** Number of particles. */
+size_t psys_system_count(const psys_system *sys);
+/** Simulation clock. */
+double psys_system_time(const psys_system *sys);
+/** Set the simulation clock. */
+void psys_system_set_time(psys_system *sys, double t);
+
+/** Add a particle; v may be NULL (zero), id may be NULL; mass > 0. */
+psys_status psys_system_add_particle(psys_system *sys, const double *x, const double *v,
+                                     double mass, const char *id, size_t *index);
+/** Find a particle by id. */
+psys_status psys_system_find(const psys_system *sys, const char *id, size_t *index);
+/** Id of particle i, or NULL if it has none. */
+const char *psys_system_particle_id(const psys_system *sys, size_t i);
+/** Make particle i fixed (velocity zeroed) or free. */
+psys_status psys_system_set_fixed(psys_system *sys, size_t i, bool fixed);
+/** True if particle i is fixed. */
+bool psys_system_is_fixed(const psys_system *sys, size_t i);
+/** Set particle i's position and velocity (v may be NULL: unchanged). */
+psys_status psys_system_set_particle(psys_system *sys, size_t i, const double *x, const double *v);
+/** Positions, n*dim, particle-major (valid until particles are added). */
+const double *psys_system_positions(const psys_system *sys);
+/** Velocities, n*dim. */
+const double *psys_system_velocities(const psys_system *sys);
+/** Masses, n. */
+const double *psys_system_masses(const psys_system *sys);
+
+/** Add a force object; data is owned by the system from now on (destroyed
+ *  with it, also when this call fails). */
+psys_status psys_system_add_force(psys_system *sys, const psys_force_class *cls, void *data);
+/** Number of force objects. */
+size_t psys_system_force_count(const psys_system *sys);
+/** Class of force object i. */
+const psys_force_class *psys_system_force_class(const psys_system *sys, size_t i);
+/** Data of force object i. */
+void *psys_system_force_data(const psys_system *sys, size_t i);
+
+/** Add uniform gravity f = m g (a new force object). */
+psys_status psys_system_add_gravity(psys_system *sys, const double *g);
+/** Add viscous drag f = -kd v on every particle (a new force object). */
+psys_status psys_system_add_drag(psys_system *sys, double kd);
+/** Add a damped Hooke spring (eq. 1) between a and b; rest < 0 means the
+ *  current distance. All springs live in one force object of the system. */
+psys_status psys_system_add_spring(psys_system *sys, size_t a, size_t b,
+                                   double ks, double kd, double rest);
+/** Number of springs. */
+size_t psys_system_spring_count(const psys_system *sys);
+/** Parameters of spring k (any out pointer may be NULL). */
+psys_status psys_system_spring(const psys_system *sys, size_t k, size_t *a, size_t *b,
+                               double *ks, double *kd, double *rest);
+
+/** The force class of gravity objects. */
+extern const psys_force_class psys_gravity_class;
+/** The force class of drag objects. */
+extern const psys_force_class psys_drag_class;
+/** The force class of the spring set. */
+extern const psys_force_class psys_spring_class;
+
+/** The ODE view of the system: y = [x (n*dim) | v (n*dim)]. The psys_ode
+ *  refers to sys, which must outlive it; adding particles invalidates it. */
+psys_ode psys_system_ode(psys_system *sys);
+/** Sum of all forces at the current state into f (n*dim, overwritten). */
+psys_status psys_system_compute_forces(psys_system *sys, double *f);
+/** Kinetic energy of free particles. */
+double psys_system_kinetic_energy(const psys_system *sys);
+/** Potential energy of all conservative force objects. */
+double psys_system_potential_energy(const psys_system *sys);
+/** Particle index of ODE state component k. */
+size_t psys_system_particle_of_component(const psys_system *sys, size_t k);
+
+/** Dense Jacobians ∂f/∂x and ∂f/∂v ((n*dim)² each, row-major, overwritten)
+ *  from the force objects that provide them; for checks on small systems. */
+psys_status psys_system_dense_jacobian(psys_system *sys, double *dfdx, double *dfdv);
+/** Same from central finite differences of the forces, step eps. */
+psys_status psys_system_fd_jacobian(psys_system *sys, double eps, double *dfdx, double *dfdv);
+
+/* ------------------------------------------------------------------ */
+/* Scenes (JSON, DESIGN §2)                                            */
+/* ------------------------------------------------------------------ */
+
+/** Run settings that come with a scene. */
+typedef struct psys_settings {
+    char integrator[32];   /**< solver name */
+    double dt;             /**< step (first step for rk45) */
+    bool use_steps;        /**< true: run `steps` steps; false: run `duration` */
+    long long steps;       /**< number of steps when use_steps */
+    double duration;       /**< simulated time when !use_steps */
+    double tolerance;      /**< rk45 local error tolerance */
+    long long every;       /**< steps between output frames (>= 1) */
+    char trajectory[1024]; /**< output.trajectory ("" for none) */
+    char energy[1024];     /**< output.energy ("" for none) */
+    char render[1024];     /**< output.render ("" for none) */
+} psys_settings;
+
+/** Clock and solver state saved in a checkpoint. */
+typedef struct psys_resume_state {
+    bool present;        /**< true if the scene carried a checkpoint */
+    long long step;      /**< steps taken so far */
+    double t;            /**< time reached */
+    long long base_step; /**< t = base_t + (step - base_step) * dt for fixed steps */
+    double base_t;       /**< see base_step */
+    double next_h;       /**< adaptive solver's next step (0 if none) */
+} psys_resume_state;
+
+/** A loaded scene: the system and its run settings. */
+typedef struct psys_scene psys_scene;
+
+/** Settings with DESIGN's defaults (rk4, dt 0.001, duration 1, ...). */
+psys_settings psys_settings_default(void);
+
+/** Parse a scene from memory; name is used in messages. On failure returns
+ *  NULL and err holds "JSON.PATH: problem (got VALUE)". */
+psys_scene *psys_scene_load_string(const char *text, size_t len, psys_error *err);
+/** Parse a scene file ("-" reads standard input). */
+psys_scene *psys_scene_load_file(const char *path, psys_error *err);
+/** Free a scene and its system. */
+void psys_scene_destroy(psys_scene *scene);
+/** The scene's system (owned by the scene). */
+psys_system *psys_scene_system(psys_scene *scene);
+/** The scene's run settings (modifiable, e.g. by command-line flags). */
+psys_settings *psys_scene_settings(psys_scene *scene);
+/** Checkpoint state carried by the scene, if any. */
+const psys_resume_state *psys_scene_resume_state(const psys_scene *scene);
+/** Serialise the scene (structures expanded) as JSON text; free() the result.
+ *  With resume != NULL a "checkpoint" object is written too. */
+char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *resume, psys_error *err);
+
+/* ------------------------------------------------------------------ */
+/* Runs (DESIGN §3a): steps, duration, frames, checkpoints             */
+/* ------------------------------------------------------------------ */
+
+/** Steps a scene's system according to its settings. */
+typedef struct psys_run psys_run;
+
+/** Prepare a run of scene (not owned) with its current settings; when the
+ *  scene carries a checkpoint, the run continues from it. */
+psys_run *psys_run_create(psys_scene *scene, psys_error *err);
+/** Free a run. */
+void psys_run_destroy(psys_run *run);
+/** Steps taken so far (counting from the start of the simulation). */
+long long psys_run_step_index(const psys_run *run);
+/** Step index at which this run ends. */
+long long psys_run_final_step(const psys_run *run);
+/** True once the run has reached its end. */
+bool psys_run_done(const psys_run *run);
+/** True if the current state is an output frame (every-th step or the end). */
+bool psys_run_is_frame(const psys_run *run);
+/** Advance by one step (rk45: one accepted step). On PSYS_ERR_NONFINITE the
+ *  state stays the last good one and err names step, time and particle. */
+psys_status psys_run_step(psys_run *run, psys_error *err);
+/** Fraction of the run done, 0..1. */
+double psys_run_progress(const psys_run *run);
+/** Clock and solver state to store in a checkpoint. */
+psys_resume_state psys_run_resume_state(const psys_run *run);
+/** The solver in use. */
+const psys_solver *psys_run_solver(const psys_run *run);
+
+/* ------------------------------------------------------------------ */
+/* Output files (DESIGN §3)                                            */
+/* ------------------------------------------------------------------ */
+
+/** Write the trajectory CSV header (step,t,i,x,y[,z],vx,vy[,vz]). */
+int psys_csv_write_trajectory_header(FILE *fp, int dim);
+/** Write one trajectory frame: a row per particle, %.17g numbers. */
+int psys_csv_write_trajectory_frame(FILE *fp, const psys_system *sys, long long step);
+/** Write the energy CSV header (step,t,kinetic,potential,total). */
+int psys_csv_write_energy_header(FILE *fp);
+/** Write one energy row. */
+int psys_csv_write_energy_frame(FILE *fp, const psys_system *sys, long long step);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,69 @@
+/* Viscous drag f = -kd v (notes §4.1): a unary, non-conservative force. */
+#include "internal.h"
+
+#include <cjson/cJSON.h>
+#include <stdlib.h>
+
+typedef struct drag {
+    double kd;
+} drag;
+
+static void drag_apply(void *data, const psys_force_eval *e, double *f)
+{
+    double kd = ((const drag *)data)->kd;
+    size_t nd = e->n * (size_t)e->dim;
+    for (size_t i = 0; i < nd; i++)
+        f[i] -= kd * e->v[i];
+}
+
+static void drag_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J)
+{
+    double kd = ((const drag *)data)->kd;
+    int d = e->dim;
+    double blk[9] = {0};
+    for (int k = 0; k < d; k++)
+        blk[k * d + k] = -kd;
+    for (size_t i = 0; i < e->n; i++)
+        psys_jacobian_add(J, i, i, NULL, blk);
+}
+
+const psys_force_class psys_drag_class = {"drag", drag_apply, NULL, drag_jacobian, free};
+
+psys_status psys_system_add_drag(psys_system *sys, double kd)
+{
+    if (!(kd >= 0) || kd > 1e308)
+        return psys__fail(&sys->err, PSYS_ERR_INVALID, "drag kd must be finite and >= 0");
+    drag *dr = calloc(1, sizeof *dr);
+    if (!dr)
+        return psys__fail(&sys->err, PSYS_ERR_NOMEM, "out of memory adding drag");
+    dr->kd = kd;
+    return psys_system_add_force(sys, &psys_drag_class, dr);
+}
+
+static psys_status drag_parse(psys__parse *p, const cJSON *obj, const char *path)
+{
+    static const char *const keys[] = {"type", "kd", NULL};
+    psys_system *sys = psys__parse_system(p);
+    double kd;
+    psys_status st = psys__parse_keys(p, obj, path, keys);
+    if (st == PSYS_OK)
+        st = psys__parse_number(p, obj, path, "kd", false, 0, 0, false, &kd);
+    if (st == PSYS_OK && psys_system_add_drag(sys, kd) != PSYS_OK)
+        st = psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
+    return st;
+}
+
+static psys_status drag_save(const psys_system *sys, const void *data, cJSON *arr)
+{
+    (void)sys;
+    cJSON *o = cJSON_CreateObject();
+    if (!o || !cJSON_AddStringToObject(o, "type", "drag")
+        || !psys__add_num(o, "kd", ((const drag *)data)->kd)) {
+        cJSON_Delete(o);
+        return PSYS_ERR_NOMEM;
+    }
+    cJSON_AddItemToArray(arr, o);
+    return PSYS_OK;
+}
+
+const psys__force_io psys__drag_io = {"drag", &psys_drag_class, drag_parse, drag_save};

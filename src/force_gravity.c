@@ -1,0 +1,83 @@
+/* Uniform gravity f = m g (notes §4.1): a unary force object. */
+#include "internal.h"
+
+#include <cjson/cJSON.h>
+#include <stdlib.h>
+
+typedef struct gravity {
+    double g[3];
+} gravity;
+
+static void gravity_apply(void *data, const psys_force_eval *e, double *f)
+{
+    const gravity *gr = data;
+    int d = e->dim;
+    for (size_t i = 0; i < e->n; i++)
+        for (int k = 0; k < d; k++)
+            f[i * d + k] += e->mass[i] * gr->g[k];
+}
+
+/* U = -Σ m g·x over free particles (fixed ones cannot exchange energy). */
+static double gravity_energy(void *data, const psys_force_eval *e)
+{
+    const gravity *gr = data;
+    int d = e->dim;
+    double u = 0;
+    for (size_t i = 0; i < e->n; i++) {
+        if (e->flags[i] & PSYS_PARTICLE_FIXED)
+            continue;
+        double gx = 0;
+        for (int k = 0; k < d; k++)
+            gx += gr->g[k] * e->x[i * d + k];
+        u -= e->mass[i] * gx;
+    }
+    return u;
+}
+
+/* Constant force: both Jacobians are zero, so there is nothing to add. */
+static void gravity_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J)
+{
+    (void)data;
+    (void)e;
+    (void)J;
+}
+
+const psys_force_class psys_gravity_class = {"gravity", gravity_apply, gravity_energy, gravity_jacobian, free};
+
+psys_status psys_system_add_gravity(psys_system *sys, const double *g)
+{
+    gravity *gr = calloc(1, sizeof *gr);
+    if (!gr)
+        return psys__fail(&sys->err, PSYS_ERR_NOMEM, "out of memory adding gravity");
+    for (int k = 0; k < sys->dim; k++)
+        gr->g[k] = g[k];
+    return psys_system_add_force(sys, &psys_gravity_class, gr);
+}
+
+static psys_status gravity_parse(psys__parse *p, const cJSON *obj, const char *path)
+{
+    static const char *const keys[] = {"type", "g", NULL};
+    psys_system *sys = psys__parse_system(p);
+    double def[3] = {0, -9.81, 0}, g[3];
+    psys_status st = psys__parse_keys(p, obj, path, keys);
+    if (st == PSYS_OK)
+        st = psys__parse_vec(p, obj, path, "g", def, g);
+    if (st == PSYS_OK && psys_system_add_gravity(sys, g) != PSYS_OK)
+        st = psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
+    return st;
+}
+
+static psys_status gravity_save(const psys_system *sys, const void *data, cJSON *arr)
+{
+    const gravity *gr = data;
+    cJSON *o = cJSON_CreateObject();
+    if (!o || !cJSON_AddStringToObject(o, "type", "gravity")
+        || !cJSON_AddItemToObject(o, "g", psys__vec_json(gr->g, sys->dim))) {
+        cJSON_Delete(o);
+        return PSYS_ERR_NOMEM;
+    }
+    cJSON_AddItemToArray(arr, o);
+    return PSYS_OK;
+}
+
+const psys__force_io psys__gravity_io = {"gravity", &psys_gravity_class, gravity_parse, gravity_save};

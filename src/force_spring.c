@@ -1,0 +1,211 @@
+/* Damped Hooke springs (notes eq. 1), all of a system's springs in one
+ * force object stored as arrays so the loop streams through memory:
+ *   l = a - b,  f_a = -[ks(|l| - r) + kd (l̇·l)/|l|] l/|l|,  f_b = -f_a.
+ * A spring of zero current length has no direction and exerts no force. */
+#include "internal.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdint.h>
+#include <stdlib.h>
+
+typedef struct springs {
+    size_t n, cap;
+    uint32_t *a, *b;
+    double *ks, *kd, *rest;
+} springs;
+
+static void springs_destroy(void *data)
+{
+    springs *s = data;
+    if (!s)
+        return;
+    free(s->a);
+    free(s->b);
+    free(s->ks);
+    free(s->kd);
+    free(s->rest);
+    free(s);
+}
+
+void *psys__springs_create(void) { return calloc(1, sizeof(springs)); }
+size_t psys__springs_count(const void *set) { return ((const springs *)set)->n; }
+
+psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double kd, double rest)
+{
+    springs *s = set;
+    if (a > UINT32_MAX || b > UINT32_MAX)
+        return PSYS_ERR_INVALID;
+    if (s->n == s->cap) {
+        size_t cap = s->cap ? s->cap * 2 : 64;
+        void *p;
+#define GROW(field, type)                              \
+    if (!(p = psys__realloc(s->field, cap, sizeof(type)))) \
+        return PSYS_ERR_NOMEM;                         \
+    s->field = p;
+        GROW(a, uint32_t)
+        GROW(b, uint32_t)
+        GROW(ks, double)
+        GROW(kd, double)
+        GROW(rest, double)
+#undef GROW
+        s->cap = cap;
+    }
+    s->a[s->n] = (uint32_t)a;
+    s->b[s->n] = (uint32_t)b;
+    s->ks[s->n] = ks;
+    s->kd[s->n] = kd;
+    s->rest[s->n] = rest;
+    s->n++;
+    return PSYS_OK;
+}
+
+void psys__springs_get(const void *set, size_t k, size_t *a, size_t *b, double *ks, double *kd, double *rest)
+{
+    const springs *s = set;
+    if (a) *a = s->a[k];
+    if (b) *b = s->b[k];
+    if (ks) *ks = s->ks[k];
+    if (kd) *kd = s->kd[k];
+    if (rest) *rest = s->rest[k];
+}
+
+/* d is a compile-time constant at each call site, so the inner loops unroll. */
+static inline void springs_apply_d(const springs *s, const psys_force_eval *e, double *f, const int d)
+{
+    const double *x = e->x, *v = e->v;
+    for (size_t k = 0; k < s->n; k++) {
+        size_t ia = (size_t)s->a[k] * d, ib = (size_t)s->b[k] * d;
+        double l[3], ld[3], len2 = 0, dot = 0;
+        for (int c = 0; c < d; c++) {
+            l[c] = x[ia + c] - x[ib + c];
+            ld[c] = v[ia + c] - v[ib + c];
+            len2 += l[c] * l[c];
+            dot += ld[c] * l[c];
+        }
+        if (len2 == 0)
+            continue;
+        double len = sqrt(len2);
+        double mag = (s->ks[k] * (len - s->rest[k]) + s->kd[k] * dot / len) / len;
+        for (int c = 0; c < d; c++) {
+            double fc = mag * l[c];
+            f[ia + c] -= fc;
+            f[ib + c] += fc;
+        }
+    }
+}
+
+static void springs_apply(void *data, const psys_force_eval *e, double *f)
+{
+    if (e->dim == 2)
+        springs_apply_d(data, e, f, 2);
+    else
+        springs_apply_d(data, e, f, 3);
+}
+
+static double springs_energy(void *data, const psys_force_eval *e)
+{
+    const springs *s = data;
+    int d = e->dim;
+    double u = 0;
+    for (size_t k = 0; k < s->n; k++) {
+        size_t ia = (size_t)s->a[k] * d, ib = (size_t)s->b[k] * d;
+        double len2 = 0;
+        for (int c = 0; c < d; c++) {
+            double lc = e->x[ia + c] - e->x[ib + c];
+            len2 += lc * lc;
+        }
+        double stretch = sqrt(len2) - s->rest[k];
+        u += 0.5 * s->ks[k] * stretch * stretch;
+    }
+    return u;
+}
+
+/* With u = l/|l|, P = I - u uᵀ:
+ *   ∂f_a/∂l = -ks [u uᵀ + (1 - r/|l|) P] - (kd/|l|) [u (P l̇)ᵀ + (l̇·u) P]
+ *   ∂f_a/∂l̇ = -kd u uᵀ
+ * and ∂/∂x_a = ∂/∂l = -∂/∂x_b, f_b = -f_a. */
+static void springs_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J)
+{
+    const springs *s = data;
+    int d = e->dim;
+    for (size_t k = 0; k < s->n; k++) {
+        size_t a = s->a[k], b = s->b[k];
+        double l[3], ld[3], len2 = 0;
+        for (int c = 0; c < d; c++) {
+            l[c] = e->x[a * d + c] - e->x[b * d + c];
+            ld[c] = e->v[a * d + c] - e->v[b * d + c];
+            len2 += l[c] * l[c];
+        }
+        if (len2 == 0)
+            continue;
+        double len = sqrt(len2), u[3], udot = 0, pld[3];
+        for (int c = 0; c < d; c++) {
+            u[c] = l[c] / len;
+            udot += ld[c] * u[c];
+        }
+        for (int c = 0; c < d; c++)
+            pld[c] = ld[c] - udot * u[c];
+        double kx[9], kv[9], nkx[9], nkv[9];
+        double ks = s->ks[k], kd = s->kd[k], fr = 1.0 - s->rest[k] / len;
+        for (int r = 0; r < d; r++)
+            for (int c = 0; c < d; c++) {
+                double uu = u[r] * u[c], p = (r == c ? 1.0 : 0.0) - uu;
+                kx[r * d + c] = -ks * (uu + fr * p) - kd / len * (u[r] * pld[c] + udot * p);
+                kv[r * d + c] = -kd * uu;
+                nkx[r * d + c] = -kx[r * d + c];
+                nkv[r * d + c] = -kv[r * d + c];
+            }
+        psys_jacobian_add(J, a, a, kx, kv);
+        psys_jacobian_add(J, a, b, nkx, nkv);
+        psys_jacobian_add(J, b, a, nkx, nkv);
+        psys_jacobian_add(J, b, b, kx, kv);
+    }
+}
+
+const psys_force_class psys_spring_class = {"spring", springs_apply, springs_energy, springs_jacobian,
+                                            springs_destroy};
+
+static psys_status spring_parse(psys__parse *p, const cJSON *obj, const char *path)
+{
+    static const char *const keys[] = {"type", "a", "b", "ks", "kd", "rest", NULL};
+    psys_system *sys = psys__parse_system(p);
+    size_t a, b;
+    double ks, kd, rest;
+    psys_status st = psys__parse_keys(p, obj, path, keys);
+    if (st == PSYS_OK) st = psys__parse_ref(p, obj, path, "a", &a);
+    if (st == PSYS_OK) st = psys__parse_ref(p, obj, path, "b", &b);
+    if (st == PSYS_OK) st = psys__parse_number(p, obj, path, "ks", false, 0, 0, false, &ks);
+    if (st == PSYS_OK) st = psys__parse_number(p, obj, path, "kd", true, 0, 0, false, &kd);
+    if (st == PSYS_OK) st = psys__parse_number(p, obj, path, "rest", true, -1, 0, false, &rest);
+    if (st == PSYS_OK && a == b) {
+        char bpath[256];
+        snprintf(bpath, sizeof bpath, "%s.b", path);
+        st = psys__parse_fail(p, bpath, cJSON_GetObjectItemCaseSensitive(obj, "b"),
+                              "a spring needs two different particles");
+    }
+    if (st == PSYS_OK && psys_system_add_spring(sys, a, b, ks, kd, rest) != PSYS_OK)
+        st = psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
+    return st;
+}
+
+static psys_status spring_save(const psys_system *sys, const void *data, cJSON *arr)
+{
+    const springs *s = data;
+    for (size_t k = 0; k < s->n; k++) {
+        cJSON *o = cJSON_CreateObject();
+        if (!o || !cJSON_AddStringToObject(o, "type", "spring")
+            || !cJSON_AddItemToObject(o, "a", psys__ref_json(sys, s->a[k]))
+            || !cJSON_AddItemToObject(o, "b", psys__ref_json(sys, s->b[k]))
+            || !psys__add_num(o, "ks", s->ks[k]) || !psys__add_num(o, "kd", s->kd[k])
+            || !psys__add_num(o, "rest", s->rest[k])) {
+            cJSON_Delete(o);
+            return PSYS_ERR_NOMEM;
+        }
+        cJSON_AddItemToArray(arr, o);
+    }
+    return PSYS_OK;
+}
+
+const psys__force_io psys__spring_io = {"spring", &psys_spring_class, spring_parse, spring_save};

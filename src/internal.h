@@ -1,0 +1,119 @@
+/* Internal declarations shared by the library's source files. */
+#ifndef PSYS_INTERNAL_H
+#define PSYS_INTERNAL_H
+
+#include "psys/psys.h"
+
+#include <stdarg.h>
+#include <stdint.h>
+
+struct cJSON;
+
+/** Fill err (may be NULL) with code and a printf-style message; returns code. */
+psys_status psys__fail(psys_error *err, psys_status code, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+/** vprintf form of psys__fail. */
+psys_status psys__vfail(psys_error *err, psys_status code, const char *fmt, va_list ap);
+/** Clear err (may be NULL). */
+void psys__ok(psys_error *err);
+
+/** Overflow-checked n*size allocation (NULL on overflow or failure). */
+void *psys__calloc(size_t n, size_t size);
+/** Overflow-checked realloc of n*size bytes. */
+void *psys__realloc(void *p, size_t n, size_t size);
+/** strdup that does not depend on POSIX. */
+char *psys__strdup(const char *s);
+
+/** One force object of a system. */
+typedef struct psys__force {
+    const psys_force_class *cls;
+    void *data;
+} psys__force;
+
+struct psys_system {
+    int dim;
+    size_t n, cap;
+    double *x, *v;         /* positions and velocities, n*dim each (SoA by quantity) */
+    double *f;             /* force accumulator, n*dim */
+    double *mass, *inv_mass;
+    unsigned char *flags;
+    char **ids;
+    double t;
+    psys__force *forces;
+    size_t nforces, forces_cap;
+    void *springs;         /* the system's spring set (also in forces), or NULL */
+    psys_error err;
+};
+
+/** Fill a force evaluation view of the system from explicit x and v. */
+void psys__sys_eval(const psys_system *s, double t, const double *x, const double *v, psys_force_eval *e);
+
+/** Jacobian sink: callback form used by dense and (later) sparse assembly. */
+struct psys_jacobian {
+    void (*add)(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv);
+    void *ctx;
+};
+
+/* ---- spring set internals (force_spring.c) ---- */
+/** Create an empty spring set. */
+void *psys__springs_create(void);
+/** Append one spring. */
+psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double kd, double rest);
+/** Number of springs. */
+size_t psys__springs_count(const void *set);
+/** Read spring k. */
+void psys__springs_get(const void *set, size_t k, size_t *a, size_t *b, double *ks, double *kd, double *rest);
+
+/* ---- scene-format handlers per force type (one per force file) ---- */
+typedef struct psys__parse psys__parse;
+
+/** How one force type is read from and written to scenes. */
+typedef struct psys__force_io {
+    const char *type;                       /* JSON "type" */
+    const psys_force_class *cls;            /* NULL if the type has no class of its own */
+    /** Parse obj (path names it in messages) into sys. */
+    psys_status (*parse)(psys__parse *p, const struct cJSON *obj, const char *path);
+    /** Append JSON objects describing force object data to the array arr. */
+    psys_status (*save)(const psys_system *sys, const void *data, struct cJSON *arr);
+} psys__force_io;
+
+extern const psys__force_io psys__gravity_io;
+extern const psys__force_io psys__drag_io;
+extern const psys__force_io psys__spring_io;
+
+/** All force types known to scenes, NULL-terminated. */
+extern const psys__force_io *const psys__force_types[];
+
+/* ---- helpers for force parsers (scene_load.c) ---- */
+/** The system being built. */
+psys_system *psys__parse_system(psys__parse *p);
+/** Fail with "PATH: what (got VALUE)" where VALUE is item printed. */
+psys_status psys__parse_fail(psys__parse *p, const char *path, const struct cJSON *item, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 4, 5)))
+#endif
+    ;
+/** Reject keys of obj not in the NULL-terminated list allowed. */
+psys_status psys__parse_keys(psys__parse *p, const struct cJSON *obj, const char *path, const char *const *allowed);
+/** Read a finite number at key; if absent use def (required if !has_def). min is an
+ *  inclusive lower bound unless min_exclusive. */
+psys_status psys__parse_number(psys__parse *p, const struct cJSON *obj, const char *path, const char *key,
+                               bool has_def, double def, double min, bool min_exclusive, double *out);
+/** Read a dim-vector at key (required if def is NULL, else defaults to def). */
+psys_status psys__parse_vec(psys__parse *p, const struct cJSON *obj, const char *path, const char *key,
+                            const double *def, double *out);
+/** Read a particle reference (id string or index) at key. */
+psys_status psys__parse_ref(psys__parse *p, const struct cJSON *obj, const char *path, const char *key, size_t *out);
+/** Add to arr a JSON reference to particle i (its id, else its index). */
+struct cJSON *psys__ref_json(const psys_system *sys, size_t i);
+/** A JSON number that reads back as exactly x. */
+struct cJSON *psys__num_json(double x);
+/** Add key: x (exact) to obj; NULL on failure. */
+struct cJSON *psys__add_num(struct cJSON *obj, const char *key, double x);
+/** A JSON array of dim numbers (exact). */
+struct cJSON *psys__vec_json(const double *v, int dim);
+
+#endif

@@ -1,0 +1,526 @@
+/* Scene loader (DESIGN §2): JSON text -> psys_system + psys_settings, with
+ * every problem reported as "JSON.PATH: what is wrong (got VALUE)". */
+#include "internal.h"
+#include "scene.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct psys__parse {
+    psys_system *sys;
+    psys_error *err;
+};
+
+psys_system *psys__parse_system(psys__parse *p) { return p->sys; }
+
+/* A short printed form of item for "(got ...)". */
+static void describe(const cJSON *item, char *out, size_t cap)
+{
+    char *txt = item ? cJSON_PrintUnformatted(item) : NULL;
+    if (!txt) {
+        snprintf(out, cap, "%s", item ? "?" : "");
+        return;
+    }
+    size_t len = strlen(txt);
+    if (len > 60)
+        snprintf(out, cap, "%.57s...", txt);
+    else
+        snprintf(out, cap, "%s", txt);
+    free(txt);
+}
+
+psys_status psys__parse_fail(psys__parse *p, const char *path, const cJSON *item, const char *fmt, ...)
+{
+    char what[384], got[96];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(what, sizeof what, fmt, ap);
+    va_end(ap);
+    if (item) {
+        describe(item, got, sizeof got);
+        return psys__fail(p->err, PSYS_ERR_INVALID, "%s: %s (got %s)", path, what, got);
+    }
+    return psys__fail(p->err, PSYS_ERR_INVALID, "%s: %s", path, what);
+}
+
+static void key_path(char *out, size_t cap, const char *path, const char *key)
+{
+    if (path[0])
+        snprintf(out, cap, "%s.%s", path, key);
+    else
+        snprintf(out, cap, "%s", key);
+}
+
+psys_status psys__parse_keys(psys__parse *p, const cJSON *obj, const char *path, const char *const *allowed)
+{
+    char kp[256];
+    for (const cJSON *it = obj->child; it; it = it->next) {
+        bool ok = false;
+        for (const char *const *a = allowed; *a; a++)
+            if (strcmp(*a, it->string) == 0)
+                ok = true;
+        key_path(kp, sizeof kp, path, it->string);
+        if (!ok)
+            return psys__parse_fail(p, kp, NULL, "unknown key");
+        for (const cJSON *jt = obj->child; jt != it; jt = jt->next)
+            if (strcmp(jt->string, it->string) == 0)
+                return psys__parse_fail(p, kp, NULL, "duplicate key");
+    }
+    return PSYS_OK;
+}
+
+psys_status psys__parse_number(psys__parse *p, const cJSON *obj, const char *path, const char *key,
+                               bool has_def, double def, double min, bool min_exclusive, double *out)
+{
+    char kp[256];
+    key_path(kp, sizeof kp, path, key);
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!it) {
+        if (!has_def)
+            return psys__parse_fail(p, kp, NULL, "required key missing");
+        *out = def;
+        return PSYS_OK;
+    }
+    if (!cJSON_IsNumber(it))
+        return psys__parse_fail(p, kp, it, "must be a number");
+    double v = it->valuedouble;
+    if (!isfinite(v))
+        return psys__parse_fail(p, kp, it, "must be finite");
+    if (min_exclusive ? !(v > min) : !(v >= min))
+        return psys__parse_fail(p, kp, it, "must be %s %g", min_exclusive ? ">" : ">=", min);
+    *out = v;
+    return PSYS_OK;
+}
+
+/* cJSON parses numbers as doubles; an integer must be exact and in range. */
+static psys_status parse_integer(psys__parse *p, const cJSON *obj, const char *path, const char *key,
+                                 long long min, long long *out, bool *present)
+{
+    char kp[256];
+    key_path(kp, sizeof kp, path, key);
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (present)
+        *present = it != NULL;
+    if (!it)
+        return PSYS_OK;
+    if (!cJSON_IsNumber(it) || !isfinite(it->valuedouble) || it->valuedouble != floor(it->valuedouble))
+        return psys__parse_fail(p, kp, it, "must be an integer");
+    if (it->valuedouble < (double)min || it->valuedouble > 1e15)
+        return psys__parse_fail(p, kp, it, "must be an integer from %lld to 1e15", min);
+    *out = (long long)it->valuedouble;
+    return PSYS_OK;
+}
+
+psys_status psys__parse_vec(psys__parse *p, const cJSON *obj, const char *path, const char *key,
+                            const double *def, double *out)
+{
+    char kp[256];
+    int d = p->sys->dim;
+    key_path(kp, sizeof kp, path, key);
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!it) {
+        if (!def)
+            return psys__parse_fail(p, kp, NULL, "required key missing");
+        for (int k = 0; k < d; k++)
+            out[k] = def[k];
+        return PSYS_OK;
+    }
+    if (!cJSON_IsArray(it) || cJSON_GetArraySize(it) != d)
+        return psys__parse_fail(p, kp, it, "must be an array of %d numbers (dim is %d)", d, d);
+    int k = 0;
+    for (const cJSON *c = it->child; c; c = c->next, k++) {
+        if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble)) {
+            char ep[280];
+            snprintf(ep, sizeof ep, "%s[%d]", kp, k);
+            return psys__parse_fail(p, ep, c, "must be a finite number");
+        }
+        out[k] = c->valuedouble;
+    }
+    return PSYS_OK;
+}
+
+psys_status psys__parse_ref(psys__parse *p, const cJSON *obj, const char *path, const char *key, size_t *out)
+{
+    char kp[256];
+    key_path(kp, sizeof kp, path, key);
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!it)
+        return psys__parse_fail(p, kp, NULL, "required key missing");
+    if (cJSON_IsString(it)) {
+        if (psys_system_find(p->sys, it->valuestring, out) != PSYS_OK)
+            return psys__parse_fail(p, kp, it, "unknown particle id");
+        return PSYS_OK;
+    }
+    if (cJSON_IsNumber(it)) {
+        double v = it->valuedouble;
+        if (v != floor(v) || v < 0 || v >= (double)p->sys->n)
+            return psys__parse_fail(p, kp, it, "particle index out of range (there are %zu particles)",
+                                    p->sys->n);
+        *out = (size_t)v;
+        return PSYS_OK;
+    }
+    return psys__parse_fail(p, kp, it, "must be a particle id (string) or index (integer)");
+}
+
+static psys_status parse_bool(psys__parse *p, const cJSON *obj, const char *path, const char *key, bool *out)
+{
+    char kp[256];
+    key_path(kp, sizeof kp, path, key);
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!it)
+        return PSYS_OK;
+    if (!cJSON_IsBool(it))
+        return psys__parse_fail(p, kp, it, "must be true or false");
+    *out = cJSON_IsTrue(it);
+    return PSYS_OK;
+}
+
+static psys_status parse_string(psys__parse *p, const cJSON *obj, const char *path, const char *key,
+                                char *out, size_t cap)
+{
+    char kp[256];
+    key_path(kp, sizeof kp, path, key);
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!it)
+        return PSYS_OK;
+    if (!cJSON_IsString(it))
+        return psys__parse_fail(p, kp, it, "must be a string");
+    if (strlen(it->valuestring) >= cap)
+        return psys__parse_fail(p, kp, it, "is too long (at most %zu characters)", cap - 1);
+    if (it->valuestring[0] == '\0')
+        return psys__parse_fail(p, kp, it, "must not be empty");
+    memcpy(out, it->valuestring, strlen(it->valuestring) + 1);
+    return PSYS_OK;
+}
+
+/* Keys DESIGN reserves for features this version does not implement yet:
+ * rejected by name so a user is not told a documented key is a typo. */
+static psys_status unsupported(psys__parse *p, const char *path, const cJSON *item)
+{
+    return psys__parse_fail(p, path, item, "is not supported by this version of psys yet");
+}
+
+static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *path)
+{
+    static const char *const keys[] = {"id", "x", "v", "mass", "fixed", "control", "charge", NULL};
+    if (!cJSON_IsObject(obj))
+        return psys__parse_fail(p, path, obj, "a particle must be an object");
+    psys_status st = psys__parse_keys(p, obj, path, keys);
+    if (st != PSYS_OK)
+        return st;
+    char kp[256];
+    for (const char *const *k = (const char *const[]){"control", "charge", NULL}; *k; k++) {
+        const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, *k);
+        if (it) {
+            key_path(kp, sizeof kp, path, *k);
+            return unsupported(p, kp, it);
+        }
+    }
+    double x[3], v[3], zero[3] = {0, 0, 0}, mass;
+    bool fixed = false;
+    const cJSON *id = cJSON_GetObjectItemCaseSensitive(obj, "id");
+    key_path(kp, sizeof kp, path, "id");
+    if (id && (!cJSON_IsString(id) || id->valuestring[0] == '\0'))
+        return psys__parse_fail(p, kp, id, "must be a non-empty string");
+    if (id && psys_system_find(p->sys, id->valuestring, NULL) == PSYS_OK)
+        return psys__parse_fail(p, kp, id, "duplicate particle id");
+    if ((st = psys__parse_vec(p, obj, path, "x", NULL, x)) != PSYS_OK
+        || (st = psys__parse_vec(p, obj, path, "v", zero, v)) != PSYS_OK
+        || (st = psys__parse_number(p, obj, path, "mass", true, 1.0, 0, true, &mass)) != PSYS_OK
+        || (st = parse_bool(p, obj, path, "fixed", &fixed)) != PSYS_OK)
+        return st;
+    size_t i;
+    if (psys_system_add_particle(p->sys, x, v, mass, id ? id->valuestring : NULL, &i) != PSYS_OK)
+        return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));
+    if (fixed)
+        psys_system_set_fixed(p->sys, i, true);
+    return PSYS_OK;
+}
+
+static psys_status parse_force(psys__parse *p, const cJSON *obj, const char *path)
+{
+    char kp[256];
+    if (!cJSON_IsObject(obj))
+        return psys__parse_fail(p, path, obj, "a force must be an object");
+    const cJSON *type = cJSON_GetObjectItemCaseSensitive(obj, "type");
+    key_path(kp, sizeof kp, path, "type");
+    if (!type)
+        return psys__parse_fail(p, kp, NULL, "required key missing");
+    if (!cJSON_IsString(type))
+        return psys__parse_fail(p, kp, type, "must be a string");
+    for (const psys__force_io *const *io = psys__force_types; *io; io++)
+        if (strcmp((*io)->type, type->valuestring) == 0)
+            return (*io)->parse(p, obj, path);
+    static const char *const planned[] = {"behavior", "pair", "mouse-spring", NULL};
+    for (const char *const *t = planned; *t; t++)
+        if (strcmp(*t, type->valuestring) == 0)
+            return unsupported(p, kp, type);
+    return psys__parse_fail(p, kp, type, "unknown force type (known: gravity, drag, spring)");
+}
+
+/* Parse a JSON array at key with one callback per element. */
+static psys_status parse_list(psys__parse *p, const cJSON *root, const char *key,
+                              psys_status (*each)(psys__parse *, const cJSON *, const char *))
+{
+    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(root, key);
+    if (!arr)
+        return PSYS_OK;
+    if (!cJSON_IsArray(arr))
+        return psys__parse_fail(p, key, arr, "must be an array");
+    char ep[64];
+    int i = 0;
+    for (const cJSON *it = arr->child; it; it = it->next, i++) {
+        snprintf(ep, sizeof ep, "%s[%d]", key, i);
+        psys_status st = each(p, it, ep);
+        if (st != PSYS_OK)
+            return st;
+    }
+    return PSYS_OK;
+}
+
+static psys_status parse_output(psys__parse *p, const cJSON *root, psys_settings *set)
+{
+    static const char *const keys[] = {"every", "trajectory", "energy", "render", NULL};
+    const cJSON *out = cJSON_GetObjectItemCaseSensitive(root, "output");
+    if (!out)
+        return PSYS_OK;
+    if (!cJSON_IsObject(out))
+        return psys__parse_fail(p, "output", out, "must be an object");
+    psys_status st;
+    if ((st = psys__parse_keys(p, out, "output", keys)) != PSYS_OK
+        || (st = parse_integer(p, out, "output", "every", 1, &set->every, NULL)) != PSYS_OK
+        || (st = parse_string(p, out, "output", "trajectory", set->trajectory, sizeof set->trajectory)) != PSYS_OK
+        || (st = parse_string(p, out, "output", "energy", set->energy, sizeof set->energy)) != PSYS_OK
+        || (st = parse_string(p, out, "output", "render", set->render, sizeof set->render)) != PSYS_OK)
+        return st;
+    return PSYS_OK;
+}
+
+static psys_status parse_checkpoint(psys__parse *p, const cJSON *root, psys_resume_state *rs)
+{
+    static const char *const keys[] = {"step", "t", "base_step", "base_t", "next_h", NULL};
+    const cJSON *ck = cJSON_GetObjectItemCaseSensitive(root, "checkpoint");
+    if (!ck)
+        return PSYS_OK;
+    if (!cJSON_IsObject(ck))
+        return psys__parse_fail(p, "checkpoint", ck, "must be an object");
+    psys_status st;
+    bool has_step = false, has_base = false;
+    if ((st = psys__parse_keys(p, ck, "checkpoint", keys)) != PSYS_OK
+        || (st = parse_integer(p, ck, "checkpoint", "step", 0, &rs->step, &has_step)) != PSYS_OK
+        || (st = parse_integer(p, ck, "checkpoint", "base_step", 0, &rs->base_step, &has_base)) != PSYS_OK
+        || (st = psys__parse_number(p, ck, "checkpoint", "t", false, 0, -INFINITY, false, &rs->t)) != PSYS_OK
+        || (st = psys__parse_number(p, ck, "checkpoint", "base_t", false, 0, -INFINITY, false, &rs->base_t)) != PSYS_OK
+        || (st = psys__parse_number(p, ck, "checkpoint", "next_h", true, 0, 0, false, &rs->next_h)) != PSYS_OK)
+        return st;
+    if (!has_step)
+        return psys__parse_fail(p, "checkpoint.step", NULL, "required key missing");
+    if (!has_base)
+        return psys__parse_fail(p, "checkpoint.base_step", NULL, "required key missing");
+    if (rs->base_step > rs->step)
+        return psys__parse_fail(p, "checkpoint.base_step", cJSON_GetObjectItemCaseSensitive(ck, "base_step"),
+                                "must not exceed checkpoint.step");
+    rs->present = true;
+    return PSYS_OK;
+}
+
+static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *scene)
+{
+    static const char *const keys[] = {"psys", "dim", "integrator", "dt", "duration", "steps", "tolerance",
+                                       "particles", "forces", "planes", "structures", "output", "box",
+                                       "checkpoint", NULL};
+    psys_settings *set = &scene->settings;
+    psys_status st;
+    if (!cJSON_IsObject(root))
+        return psys__parse_fail(p, "(root)", root, "a scene must be a JSON object");
+    if ((st = psys__parse_keys(p, root, "", keys)) != PSYS_OK)
+        return st;
+    const cJSON *ver = cJSON_GetObjectItemCaseSensitive(root, "psys");
+    if (!ver)
+        return psys__parse_fail(p, "psys", NULL, "required key missing (a scene starts with \"psys\": 1)");
+    if (!cJSON_IsNumber(ver) || ver->valuedouble != 1)
+        return psys__parse_fail(p, "psys", ver, "unsupported format version (this psys reads version 1)");
+    long long dim = 3;
+    if ((st = parse_integer(p, root, "", "dim", 0, &dim, NULL)) != PSYS_OK)
+        return st;
+    if (dim != 2 && dim != 3)
+        return psys__parse_fail(p, "dim", cJSON_GetObjectItemCaseSensitive(root, "dim"), "must be 2 or 3");
+    if ((st = parse_string(p, root, "", "integrator", set->integrator, sizeof set->integrator)) != PSYS_OK)
+        return st;
+    if (!psys_solver_exists(set->integrator)) {
+        char known[256] = "";
+        for (size_t i = 0; psys_solver_name_at(i); i++)
+            snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", i ? ", " : "",
+                     psys_solver_name_at(i));
+        return psys__parse_fail(p, "integrator", cJSON_GetObjectItemCaseSensitive(root, "integrator"),
+                                "unknown integrator (known: %s)", known);
+    }
+    bool has_steps = false;
+    if ((st = psys__parse_number(p, root, "", "dt", true, set->dt, 0, true, &set->dt)) != PSYS_OK
+        || (st = psys__parse_number(p, root, "", "tolerance", true, set->tolerance, 0, true, &set->tolerance)) != PSYS_OK
+        || (st = parse_integer(p, root, "", "steps", 0, &set->steps, &has_steps)) != PSYS_OK)
+        return st;
+    const cJSON *dur = cJSON_GetObjectItemCaseSensitive(root, "duration");
+    if (dur && has_steps)
+        return psys__parse_fail(p, "duration", dur, "give either duration or steps, not both");
+    if ((st = psys__parse_number(p, root, "", "duration", true, set->duration, 0, false, &set->duration)) != PSYS_OK)
+        return st;
+    set->use_steps = has_steps;
+    for (const char *const *k = (const char *const[]){"planes", "structures", "box", NULL}; *k; k++) {
+        const cJSON *it = cJSON_GetObjectItemCaseSensitive(root, *k);
+        if (it)
+            return unsupported(p, *k, it);
+    }
+    if (!(p->sys = scene->sys = psys_system_create((int)dim, p->err)))
+        return p->err->code;
+    if ((st = parse_list(p, root, "particles", parse_particle)) != PSYS_OK
+        || (st = parse_list(p, root, "forces", parse_force)) != PSYS_OK
+        || (st = parse_output(p, root, set)) != PSYS_OK
+        || (st = parse_checkpoint(p, root, &scene->resume)) != PSYS_OK)
+        return st;
+    if (scene->resume.present)
+        psys_system_set_time(scene->sys, scene->resume.t);
+    return PSYS_OK;
+}
+
+psys_settings psys_settings_default(void)
+{
+    psys_settings s;
+    memset(&s, 0, sizeof s);
+    snprintf(s.integrator, sizeof s.integrator, "rk4");
+    s.dt = 0.001;
+    s.duration = 1.0;
+    s.tolerance = 1e-6;
+    s.every = 1;
+    return s;
+}
+
+/* "line L, column C" of byte offset off in text. */
+static void locate(const char *text, size_t off, char *out, size_t cap)
+{
+    size_t line = 1, col = 1;
+    for (size_t i = 0; i < off; i++) {
+        if (text[i] == '\n') {
+            line++;
+            col = 1;
+        } else {
+            col++;
+        }
+    }
+    snprintf(out, cap, "line %zu, column %zu", line, col);
+}
+
+psys_scene *psys_scene_load_string(const char *text, size_t len, psys_error *err)
+{
+    psys_error local;
+    if (!err)
+        err = &local;
+    psys__ok(err);
+    size_t i = 0;
+    while (i < len && (text[i] == ' ' || text[i] == '\t' || text[i] == '\n' || text[i] == '\r'))
+        i++;
+    if (i == len) {
+        psys__fail(err, PSYS_ERR_INVALID, "(root): the scene is empty (a scene is a JSON object starting with \"psys\": 1)");
+        return NULL;
+    }
+    if (memchr(text, '\0', len)) {
+        psys__fail(err, PSYS_ERR_INVALID, "(root): the scene contains a NUL byte (not a JSON text file)");
+        return NULL;
+    }
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithLengthOpts(text, len, &end, false);
+    if (!root || (size_t)(end - text) < len) {
+        size_t off = end ? (size_t)(end - text) : len;
+        if (root) { /* trailing garbage after a complete value */
+            while (off < len && (text[off] == ' ' || text[off] == '\t' || text[off] == '\n' || text[off] == '\r'))
+                off++;
+        }
+        if (!root || off < len) {
+            char where[64], got[40];
+            if (!root)
+                off = cJSON_GetErrorPtr() ? (size_t)(cJSON_GetErrorPtr() - text) : len;
+            if (off > len)
+                off = len;
+            locate(text, off, where, sizeof where);
+            size_t n = 0;
+            while (n < 20 && off + n < len && text[off + n] != '\n' && text[off + n] != '\r')
+                n++;
+            snprintf(got, sizeof got, "%.*s", (int)n, text + off);
+            if (n == 0)
+                psys__fail(err, PSYS_ERR_INVALID, "%s: malformed JSON (got end of file)", where);
+            else
+                psys__fail(err, PSYS_ERR_INVALID, "%s: malformed JSON (got \"%s\")", where, got);
+            cJSON_Delete(root);
+            return NULL;
+        }
+    }
+    psys_scene *scene = calloc(1, sizeof *scene);
+    if (!scene) {
+        cJSON_Delete(root);
+        psys__fail(err, PSYS_ERR_NOMEM, "(root): out of memory");
+        return NULL;
+    }
+    scene->settings = psys_settings_default();
+    psys__parse p = {NULL, err};
+    psys_status st = parse_root(&p, root, scene);
+    cJSON_Delete(root);
+    if (st != PSYS_OK) {
+        psys_scene_destroy(scene);
+        return NULL;
+    }
+    return scene;
+}
+
+psys_scene *psys_scene_load_file(const char *path, psys_error *err)
+{
+    FILE *fp = strcmp(path, "-") == 0 ? stdin : fopen(path, "rb");
+    if (!fp) {
+        psys__fail(err, PSYS_ERR_IO, "cannot open: %s", strerror(errno));
+        return NULL;
+    }
+    size_t cap = 1 << 16, len = 0;
+    char *buf = malloc(cap);
+    while (buf) {
+        size_t got = fread(buf + len, 1, cap - len, fp);
+        len += got;
+        if (len < cap)
+            break;
+        char *nb = cap > SIZE_MAX / 2 ? NULL : realloc(buf, cap * 2);
+        if (!nb) {
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        buf = nb;
+        cap *= 2;
+    }
+    bool bad = !buf || ferror(fp);
+    int e = errno;
+    if (fp != stdin)
+        fclose(fp);
+    if (bad) {
+        bool oom = buf == NULL;
+        free(buf);
+        psys__fail(err, oom ? PSYS_ERR_NOMEM : PSYS_ERR_IO, "cannot read: %s", oom ? "out of memory" : strerror(e));
+        return NULL;
+    }
+    psys_scene *scene = psys_scene_load_string(buf, len, err);
+    free(buf);
+    return scene;
+}
+
+void psys_scene_destroy(psys_scene *scene)
+{
+    if (!scene)
+        return;
+    psys_system_destroy(scene->sys);
+    free(scene);
+}
+
+psys_system *psys_scene_system(psys_scene *scene) { return scene->sys; }
+psys_settings *psys_scene_settings(psys_scene *scene) { return &scene->settings; }
+const psys_resume_state *psys_scene_resume_state(const psys_scene *scene) { return &scene->resume; }

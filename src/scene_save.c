@@ -1,0 +1,139 @@
+/* Scene saver: the loaded system written back in the scene format, so that
+ * loading the result gives the same system to the last bit (cJSON prints
+ * numbers with up to 17 significant digits, enough to recover each double). */
+#include "internal.h"
+#include "scene.h"
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* cJSON prints numbers with a relative tolerance and may drop the last bit;
+ * write the shortest text that reads back as exactly the same double. */
+cJSON *psys__num_json(double x)
+{
+    char buf[40];
+    for (int prec = 15; prec <= 17; prec++) {
+        snprintf(buf, sizeof buf, "%.*g", prec, x);
+        if (strtod(buf, NULL) == x)
+            break;
+    }
+    return cJSON_CreateRaw(buf);
+}
+
+cJSON *psys__add_num(cJSON *obj, const char *key, double x)
+{
+    cJSON *n = psys__num_json(x);
+    if (n && !cJSON_AddItemToObject(obj, key, n)) {
+        cJSON_Delete(n);
+        return NULL;
+    }
+    return n;
+}
+
+cJSON *psys__vec_json(const double *v, int dim)
+{
+    cJSON *arr = cJSON_CreateArray();
+    for (int k = 0; arr && k < dim; k++) {
+        cJSON *n = psys__num_json(v[k]);
+        if (!n) {
+            cJSON_Delete(arr);
+            return NULL;
+        }
+        cJSON_AddItemToArray(arr, n);
+    }
+    return arr;
+}
+
+cJSON *psys__ref_json(const psys_system *sys, size_t i)
+{
+    const char *id = psys_system_particle_id(sys, i);
+    return id ? cJSON_CreateString(id) : cJSON_CreateNumber((double)i);
+}
+
+static bool add_particles(const psys_system *sys, cJSON *root)
+{
+    cJSON *arr = cJSON_AddArrayToObject(root, "particles");
+    if (!arr)
+        return false;
+    int d = sys->dim;
+    for (size_t i = 0; i < sys->n; i++) {
+        cJSON *o = cJSON_CreateObject();
+        if (!o)
+            return false;
+        cJSON_AddItemToArray(arr, o);
+        if ((sys->ids[i] && !cJSON_AddStringToObject(o, "id", sys->ids[i]))
+            || !cJSON_AddItemToObject(o, "x", psys__vec_json(sys->x + i * d, d))
+            || !cJSON_AddItemToObject(o, "v", psys__vec_json(sys->v + i * d, d))
+            || !psys__add_num(o, "mass", sys->mass[i])
+            || ((sys->flags[i] & PSYS_PARTICLE_FIXED) && !cJSON_AddTrueToObject(o, "fixed")))
+            return false;
+    }
+    return true;
+}
+
+static psys_status add_forces(const psys_system *sys, cJSON *root, psys_error *err)
+{
+    cJSON *arr = cJSON_AddArrayToObject(root, "forces");
+    if (!arr)
+        return psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
+    for (size_t i = 0; i < sys->nforces; i++) {
+        const psys__force_io *io = NULL;
+        for (const psys__force_io *const *t = psys__force_types; *t; t++)
+            if ((*t)->cls == sys->forces[i].cls)
+                io = *t;
+        if (!io)
+            return psys__fail(err, PSYS_ERR_UNSUPPORTED,
+                              "force \"%s\" was added through the C API and has no scene form",
+                              sys->forces[i].cls->name);
+        psys_status st = io->save(sys, sys->forces[i].data, arr);
+        if (st != PSYS_OK)
+            return psys__fail(err, st, "out of memory saving the scene");
+    }
+    return PSYS_OK;
+}
+
+char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *resume, psys_error *err)
+{
+    const psys_settings *set = &scene->settings;
+    const psys_system *sys = scene->sys;
+    cJSON *root = cJSON_CreateObject();
+    bool ok = root && psys__add_num(root, "psys", 1) && psys__add_num(root, "dim", sys->dim)
+              && cJSON_AddStringToObject(root, "integrator", set->integrator)
+              && psys__add_num(root, "dt", set->dt)
+              && (set->use_steps ? psys__add_num(root, "steps", (double)set->steps) != NULL
+                                 : psys__add_num(root, "duration", set->duration) != NULL)
+              && psys__add_num(root, "tolerance", set->tolerance) && add_particles(sys, root);
+    if (!ok) {
+        cJSON_Delete(root);
+        psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
+        return NULL;
+    }
+    if (add_forces(sys, root, err) != PSYS_OK) {
+        cJSON_Delete(root);
+        return NULL;
+    }
+    if (set->every != 1 || set->trajectory[0] || set->energy[0] || set->render[0]) {
+        cJSON *out = cJSON_AddObjectToObject(root, "output");
+        ok = out && psys__add_num(out, "every", (double)set->every)
+             && (!set->trajectory[0] || cJSON_AddStringToObject(out, "trajectory", set->trajectory))
+             && (!set->energy[0] || cJSON_AddStringToObject(out, "energy", set->energy))
+             && (!set->render[0] || cJSON_AddStringToObject(out, "render", set->render));
+    }
+    if (ok && resume) {
+        cJSON *ck = cJSON_AddObjectToObject(root, "checkpoint");
+        ok = ck && psys__add_num(ck, "step", (double)resume->step)
+             && psys__add_num(ck, "t", resume->t)
+             && psys__add_num(ck, "base_step", (double)resume->base_step)
+             && psys__add_num(ck, "base_t", resume->base_t)
+             && psys__add_num(ck, "next_h", resume->next_h);
+    }
+    char *text = ok ? cJSON_Print(root) : NULL;
+    cJSON_Delete(root);
+    if (!text)
+        psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
+    else
+        psys__ok(err);
+    return text;
+}

@@ -1,0 +1,127 @@
+/* Solver registry and the operations every solver shares. */
+#include "solver.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const psys__solver_class *const registry[] = {
+    &psys__euler, &psys__midpoint, &psys__rk4, &psys__symplectic_euler, &psys__verlet, &psys__rk45, NULL,
+};
+
+size_t psys_solver_count(void) { return sizeof registry / sizeof registry[0] - 1; }
+
+const char *psys_solver_name_at(size_t i) { return i < psys_solver_count() ? registry[i]->name : NULL; }
+
+static const psys__solver_class *lookup(const char *name)
+{
+    for (size_t i = 0; registry[i]; i++)
+        if (strcmp(registry[i]->name, name) == 0)
+            return registry[i];
+    return NULL;
+}
+
+bool psys_solver_exists(const char *name) { return name && lookup(name) != NULL; }
+
+psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_error *err)
+{
+    const psys__solver_class *cls = name ? lookup(name) : NULL;
+    if (!cls) {
+        psys__fail(err, PSYS_ERR_INVALID, "unknown solver \"%s\"", name ? name : "(null)");
+        return NULL;
+    }
+    if (!ode || !ode->derivative || !ode->get_state || !ode->set_state || !ode->get_time || !ode->set_time) {
+        psys__fail(err, PSYS_ERR_INVALID, "the ODE lacks a required callback");
+        return NULL;
+    }
+    if (cls->second_order_only && (ode->npos == 0 || 2 * ode->npos != ode->size)) {
+        psys__fail(err, PSYS_ERR_INVALID, "solver \"%s\" needs a second-order ODE (y = [positions | velocities])",
+                   cls->name);
+        return NULL;
+    }
+    psys_solver *s = calloc(1, sizeof *s);
+    if (!s) {
+        psys__fail(err, PSYS_ERR_NOMEM, "out of memory creating a solver");
+        return NULL;
+    }
+    s->cls = cls;
+    s->ode = *ode;
+    s->n = ode->size;
+    s->tol = 1e-6;
+    for (int i = 0; i < cls->nbuf; i++)
+        if (!(s->buf[i] = psys__calloc(s->n, sizeof(double)))) {
+            psys_solver_destroy(s);
+            psys__fail(err, PSYS_ERR_NOMEM, "out of memory creating a solver");
+            return NULL;
+        }
+    psys__ok(err);
+    return s;
+}
+
+void psys_solver_destroy(psys_solver *s)
+{
+    if (!s)
+        return;
+    for (int i = 0; i < PSYS__MAX_BUFS; i++)
+        free(s->buf[i]);
+    free(s);
+}
+
+const char *psys_solver_name(const psys_solver *s) { return s->cls->name; }
+bool psys_solver_is_adaptive(const psys_solver *s) { return s->cls->adaptive; }
+int psys_solver_order(const psys_solver *s) { return s->cls->order; }
+size_t psys_solver_bad_component(const psys_solver *s) { return s->bad; }
+const char *psys_solver_last_error(const psys_solver *s) { return s->err.message; }
+double psys_solver_next_step(const psys_solver *s) { return s->cls->adaptive ? s->h_next : 0.0; }
+size_t psys_solver_rejected_steps(const psys_solver *s) { return s->rejected; }
+
+psys_status psys_solver_set_tolerance(psys_solver *s, double tol)
+{
+    if (!(tol > 0) || !isfinite(tol))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "tolerance must be a finite number > 0");
+    s->tol = tol;
+    return PSYS_OK;
+}
+
+psys_status psys_solver_set_next_step(psys_solver *s, double h)
+{
+    if (!(h > 0) || !isfinite(h))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "step size must be a finite number > 0");
+    s->h_next = h;
+    return PSYS_OK;
+}
+
+psys_status psys_solver_step(psys_solver *s, double h_max, double *h_taken)
+{
+    if (!(h_max > 0) || !isfinite(h_max))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "step size must be a finite number > 0 (got %g)", h_max);
+    double h = 0;
+    psys_status st = s->cls->step(s, h_max, &h);
+    if (h_taken)
+        *h_taken = st == PSYS_OK ? h : 0.0;
+    return st;
+}
+
+psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)
+{
+    if (s->ode.project)
+        s->ode.project(s->ode.ctx, t, y);
+    psys_status st = s->ode.derivative(s->ode.ctx, t, y, ydot);
+    if (st != PSYS_OK)
+        return psys__fail(&s->err, st, "the derivative evaluation failed at t = %.17g", t);
+    return PSYS_OK;
+}
+
+psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
+{
+    if (s->ode.project)
+        s->ode.project(s->ode.ctx, t1, y1);
+    for (size_t i = 0; i < s->n; i++)
+        if (!isfinite(y1[i])) {
+            s->bad = i;
+            return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", i);
+        }
+    s->ode.set_state(s->ode.ctx, y1);
+    s->ode.set_time(s->ode.ctx, t1);
+    return PSYS_OK;
+}

@@ -1,0 +1,50 @@
+/* Solver internals: a small vtable per solver kind (REBOUND-style registry). */
+#ifndef PSYS_SOLVER_H
+#define PSYS_SOLVER_H
+
+#include "internal.h"
+
+/** Butcher tableau of an explicit Runge–Kutta method (optionally embedded). */
+typedef struct psys__tableau {
+    int stages;
+    double a[7][7];   /* strictly lower triangular */
+    double b[7];      /* weights of the propagated solution */
+    double bhat[7];   /* weights of the embedded solution (adaptive only) */
+    double c[7];      /* stage times */
+} psys__tableau;
+
+typedef struct psys__solver_class psys__solver_class;
+
+#define PSYS__MAX_BUFS 12
+
+struct psys_solver {
+    const psys__solver_class *cls;
+    psys_ode ode;
+    size_t n;
+    double *buf[PSYS__MAX_BUFS]; /* scratch vectors of length n, allocated once */
+    double tol;
+    double h_next;
+    size_t rejected;
+    size_t bad;
+    psys_error err;
+};
+
+struct psys__solver_class {
+    const char *name;
+    int order;
+    bool adaptive;
+    bool second_order_only;      /* needs ode.npos * 2 == ode.size */
+    int nbuf;                    /* scratch vectors needed */
+    const psys__tableau *tab;    /* for Runge–Kutta kinds */
+    psys_status (*step)(psys_solver *s, double h_max, double *h_taken);
+};
+
+extern const psys__solver_class psys__euler, psys__midpoint, psys__rk4, psys__rk45;
+extern const psys__solver_class psys__symplectic_euler, psys__verlet;
+
+/** Project y1 at t1, check it is finite, then set_state(y1) and set_time(t1). */
+psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);
+/** Evaluate the derivative at (t, y) after projecting prescribed components. */
+psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot);
+
+#endif

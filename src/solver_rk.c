@@ -1,0 +1,159 @@
+/* Explicit Runge–Kutta solvers driven by Butcher tableaux: euler, midpoint,
+ * rk4 share one stepper; rk45 is Dormand–Prince 5(4) with error control. */
+#include "solver.h"
+
+#include <math.h>
+#include <string.h>
+
+enum { Y0, YTMP, Y1, K0 }; /* scratch vector slots; stage k_i is buf[K0 + i] */
+
+static const psys__tableau euler_tab = {
+    .stages = 1, .b = {1}, .c = {0},
+};
+
+static const psys__tableau midpoint_tab = {
+    .stages = 2, .a = {{0}, {0.5}}, .b = {0, 1}, .c = {0, 0.5},
+};
+
+static const psys__tableau rk4_tab = {
+    .stages = 4,
+    .a = {{0}, {0.5}, {0, 0.5}, {0, 0, 1}},
+    .b = {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6},
+    .c = {0, 0.5, 0.5, 1},
+};
+
+/* Dormand & Prince (1980), the pair behind MATLAB's ode45. */
+static const psys__tableau dopri5_tab = {
+    .stages = 7,
+    .a = {{0},
+          {1.0 / 5},
+          {3.0 / 40, 9.0 / 40},
+          {44.0 / 45, -56.0 / 15, 32.0 / 9},
+          {19372.0 / 6561, -25360.0 / 2187, 64448.0 / 6561, -212.0 / 729},
+          {9017.0 / 3168, -355.0 / 33, 46732.0 / 5247, 49.0 / 176, -5103.0 / 18656},
+          {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84}},
+    .b = {35.0 / 384, 0, 500.0 / 1113, 125.0 / 192, -2187.0 / 6784, 11.0 / 84, 0},
+    .bhat = {5179.0 / 57600, 0, 7571.0 / 16695, 393.0 / 640, -92097.0 / 339200, 187.0 / 2100, 1.0 / 40},
+    .c = {0, 1.0 / 5, 3.0 / 10, 4.0 / 5, 8.0 / 9, 1, 1},
+};
+
+/* out = base + h * Σ w[j] k[j] over the nonzero weights only, so rk4's
+ * one-term stages are a single fused pass over memory. */
+static void combine(size_t n, double *out, const double *base, double h, const double *w, int count,
+                    double *const *k)
+{
+    int idx[7], m = 0;
+    for (int j = 0; j < count; j++)
+        if (w[j] != 0)
+            idx[m++] = j;
+    if (m == 0) {
+        if (out != base)
+            memcpy(out, base, n * sizeof(double));
+    } else if (m == 1) {
+        const double w0 = w[idx[0]], *k0 = k[idx[0]];
+        for (size_t i = 0; i < n; i++)
+            out[i] = base[i] + h * (w0 * k0[i]);
+    } else {
+        for (size_t i = 0; i < n; i++) {
+            double acc = 0;
+            for (int j = 0; j < m; j++)
+                acc += w[idx[j]] * k[idx[j]][i];
+            out[i] = base[i] + h * acc;
+        }
+    }
+}
+
+/* All stages of tab from (t, y0); the propagated solution goes to y1. */
+static psys_status rk_stages(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0, double *y1)
+{
+    double *const *k = &s->buf[K0];
+    for (int i = 0; i < tab->stages; i++) {
+        double *yi = y0;
+        if (i > 0) {
+            yi = s->buf[YTMP];
+            combine(s->n, yi, y0, h, tab->a[i], i, k);
+        }
+        psys_status st = psys__solver_eval(s, t + tab->c[i] * h, yi, k[i]);
+        if (st != PSYS_OK)
+            return st;
+    }
+    combine(s->n, y1, y0, h, tab->b, tab->stages, k);
+    return PSYS_OK;
+}
+
+static psys_status rk_fixed_step(psys_solver *s, double h, double *h_taken)
+{
+    double *y0 = s->buf[Y0], *y1 = s->buf[Y1];
+    double t = s->ode.get_time(s->ode.ctx);
+    s->ode.get_state(s->ode.ctx, y0);
+    psys_status st = rk_stages(s, s->cls->tab, t, h, y0, y1);
+    if (st == PSYS_OK)
+        st = psys__solver_commit(s, y1, t + h);
+    *h_taken = h;
+    return st;
+}
+
+/* RMS of the embedded error scaled by tol·(1 + max(|y0|, |y1|)); inf if any
+ * component is not finite. */
+static double error_norm(const psys_solver *s, const psys__tableau *tab, double h, const double *y0,
+                         const double *y1)
+{
+    double *const *k = &s->buf[K0];
+    double e[7], sum = 0;
+    for (int j = 0; j < tab->stages; j++)
+        e[j] = tab->b[j] - tab->bhat[j];
+    for (size_t i = 0; i < s->n; i++) {
+        double err = 0;
+        for (int j = 0; j < tab->stages; j++)
+            err += e[j] * k[j][i];
+        err *= h;
+        double scale = s->tol * (1.0 + fmax(fabs(y0[i]), fabs(y1[i])));
+        double r = err / scale;
+        sum += r * r;
+    }
+    double norm = sqrt(sum / (double)(s->n ? s->n : 1));
+    return isfinite(norm) ? norm : INFINITY;
+}
+
+static psys_status rk_adaptive_step(psys_solver *s, double h_max, double *h_taken)
+{
+    const psys__tableau *tab = s->cls->tab;
+    double *y0 = s->buf[Y0], *y1 = s->buf[Y1];
+    double t = s->ode.get_time(s->ode.ctx);
+    double h_prop = s->h_next > 0 ? s->h_next : h_max;
+    s->ode.get_state(s->ode.ctx, y0);
+    for (;;) {
+        bool clamped = h_prop >= h_max;
+        double h = clamped ? h_max : h_prop;
+        psys_status st = rk_stages(s, tab, t, h, y0, y1);
+        if (st != PSYS_OK)
+            return st;
+        double err = error_norm(s, tab, h, y0, y1);
+        /* Standard controller: safety 0.9, growth within [0.2, 5]. */
+        double factor = err == 0 ? 5.0 : fmin(5.0, fmax(0.2, 0.9 * pow(err, -1.0 / 5)));
+        if (err <= 1.0) {
+            double next = h * factor;
+            /* A step cut short to land on an output time says nothing
+             * against the longer step that was proposed. */
+            s->h_next = clamped && h_prop > next ? h_prop : next;
+            *h_taken = h;
+            return psys__solver_commit(s, y1, t + h);
+        }
+        s->rejected++;
+        h_prop = h * (isfinite(err) ? factor : 0.1);
+        if (h_prop <= 1e-14 * fmax(1.0, fabs(t))) {
+            for (size_t i = 0; i < s->n; i++)
+                if (!isfinite(y1[i])) {
+                    s->bad = i;
+                    return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", i);
+                }
+            return psys__fail(&s->err, PSYS_ERR_INVALID,
+                              "rk45 step size fell to %g at t = %.17g without meeting the tolerance", h_prop, t);
+        }
+    }
+}
+
+const psys__solver_class psys__euler = {"euler", 1, false, false, K0 + 1, &euler_tab, rk_fixed_step};
+const psys__solver_class psys__midpoint = {"midpoint", 2, false, false, K0 + 2, &midpoint_tab, rk_fixed_step};
+const psys__solver_class psys__rk4 = {"rk4", 4, false, false, K0 + 4, &rk4_tab, rk_fixed_step};
+const psys__solver_class psys__rk45 = {"rk45", 5, true, false, K0 + 7, &dopri5_tab, rk_adaptive_step};

@@ -1,0 +1,55 @@
+/* Solvers for second-order systems y = [x | v] with x' = v:
+ * symplectic (semi-implicit) Euler and velocity Verlet. */
+#include "solver.h"
+
+#include <string.h>
+
+enum { Y0, YDOT, Y1 };
+
+/* v1 = v0 + h a(t, x0, v0);  x1 = x0 + h v1 */
+static psys_status symplectic_euler_step(psys_solver *s, double h, double *h_taken)
+{
+    size_t np = s->ode.npos;
+    double *y0 = s->buf[Y0], *ydot = s->buf[YDOT], *y1 = s->buf[Y1];
+    double t = s->ode.get_time(s->ode.ctx);
+    s->ode.get_state(s->ode.ctx, y0);
+    psys_status st = psys__solver_eval(s, t, y0, ydot);
+    if (st != PSYS_OK)
+        return st;
+    const double *a = ydot + np;
+    for (size_t i = 0; i < np; i++) {
+        double v1 = y0[np + i] + h * a[i];
+        y1[np + i] = v1;
+        y1[i] = y0[i] + h * v1;
+    }
+    *h_taken = h;
+    return psys__solver_commit(s, y1, t + h);
+}
+
+/* v½ = v0 + h/2 a(x0, v0);  x1 = x0 + h v½;  v1 = v½ + h/2 a(x1, v½).
+ * Velocity-dependent forces see v½ at the second evaluation. */
+static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
+{
+    size_t np = s->ode.npos;
+    double *y0 = s->buf[Y0], *ydot = s->buf[YDOT], *y1 = s->buf[Y1];
+    double t = s->ode.get_time(s->ode.ctx), hh = 0.5 * h;
+    s->ode.get_state(s->ode.ctx, y0);
+    psys_status st = psys__solver_eval(s, t, y0, ydot);
+    if (st != PSYS_OK)
+        return st;
+    for (size_t i = 0; i < np; i++) {
+        double vh = y0[np + i] + hh * ydot[np + i];
+        y1[np + i] = vh;
+        y1[i] = y0[i] + h * vh;
+    }
+    if ((st = psys__solver_eval(s, t + h, y1, ydot)) != PSYS_OK)
+        return st;
+    for (size_t i = 0; i < np; i++)
+        y1[np + i] += hh * ydot[np + i];
+    *h_taken = h;
+    return psys__solver_commit(s, y1, t + h);
+}
+
+const psys__solver_class psys__symplectic_euler = {"symplectic-euler", 1, false, true, 3, NULL,
+                                                   symplectic_euler_step};
+const psys__solver_class psys__verlet = {"verlet", 2, false, true, 3, NULL, verlet_step};

@@ -1,0 +1,441 @@
+/* The particle system: SoA particles, the force list, and its ODE view. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+psys_system *psys_system_create(int dim, psys_error *err)
+{
+    if (dim != 2 && dim != 3) {
+        psys__fail(err, PSYS_ERR_INVALID, "dimension must be 2 or 3 (got %d)", dim);
+        return NULL;
+    }
+    psys_system *s = calloc(1, sizeof *s);
+    if (!s) {
+        psys__fail(err, PSYS_ERR_NOMEM, "out of memory creating a system");
+        return NULL;
+    }
+    s->dim = dim;
+    psys__ok(err);
+    return s;
+}
+
+void psys_system_destroy(psys_system *s)
+{
+    if (!s)
+        return;
+    for (size_t i = 0; i < s->nforces; i++)
+        if (s->forces[i].cls->destroy)
+            s->forces[i].cls->destroy(s->forces[i].data);
+    for (size_t i = 0; i < s->n; i++)
+        free(s->ids[i]);
+    free(s->forces);
+    free(s->x);
+    free(s->v);
+    free(s->f);
+    free(s->mass);
+    free(s->inv_mass);
+    free(s->flags);
+    free(s->ids);
+    free(s);
+}
+
+const char *psys_system_last_error(const psys_system *s) { return s->err.message; }
+int psys_system_dim(const psys_system *s) { return s->dim; }
+size_t psys_system_count(const psys_system *s) { return s->n; }
+double psys_system_time(const psys_system *s) { return s->t; }
+void psys_system_set_time(psys_system *s, double t) { s->t = t; }
+const double *psys_system_positions(const psys_system *s) { return s->x; }
+const double *psys_system_velocities(const psys_system *s) { return s->v; }
+const double *psys_system_masses(const psys_system *s) { return s->mass; }
+
+static bool all_finite(const double *a, int n)
+{
+    for (int i = 0; i < n; i++)
+        if (!isfinite(a[i]))
+            return false;
+    return true;
+}
+
+/* Grow every per-particle array to hold at least want particles. */
+static psys_status reserve(psys_system *s, size_t want)
+{
+    if (want <= s->cap)
+        return PSYS_OK;
+    size_t cap = s->cap ? s->cap : 16;
+    while (cap < want)
+        cap *= 2;
+    size_t d = (size_t)s->dim;
+    void *p;
+#define GROW(field, count, type)                                         \
+    p = psys__realloc(s->field, (count), sizeof(type));                  \
+    if (!p)                                                              \
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding particles"); \
+    s->field = p;
+    GROW(x, cap * d, double)
+    GROW(v, cap * d, double)
+    GROW(f, cap * d, double)
+    GROW(mass, cap, double)
+    GROW(inv_mass, cap, double)
+    GROW(flags, cap, unsigned char)
+    GROW(ids, cap, char *)
+#undef GROW
+    s->cap = cap;
+    return PSYS_OK;
+}
+
+psys_status psys_system_add_particle(psys_system *s, const double *x, const double *v,
+                                     double mass, const char *id, size_t *index)
+{
+    int d = s->dim;
+    if (!x || !all_finite(x, d) || (v && !all_finite(v, d)))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle position and velocity must be finite");
+    if (!(mass > 0) || !isfinite(mass))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle mass must be a finite number > 0 (got %g)", mass);
+    if (id) {
+        size_t dup;
+        if (psys_system_find(s, id, &dup) == PSYS_OK)
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "duplicate particle id \"%s\"", id);
+    }
+    if (reserve(s, s->n + 1) != PSYS_OK)
+        return PSYS_ERR_NOMEM;
+    char *copy = NULL;
+    if (id && !(copy = psys__strdup(id)))
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a particle");
+    size_t i = s->n;
+    for (int k = 0; k < d; k++) {
+        s->x[i * d + k] = x[k];
+        s->v[i * d + k] = v ? v[k] : 0.0;
+        s->f[i * d + k] = 0.0;
+    }
+    s->mass[i] = mass;
+    s->inv_mass[i] = 1.0 / mass;
+    s->flags[i] = 0;
+    s->ids[i] = copy;
+    s->n++;
+    if (index)
+        *index = i;
+    return PSYS_OK;
+}
+
+psys_status psys_system_find(const psys_system *s, const char *id, size_t *index)
+{
+    /* Linear scan: lookups happen while building, not while stepping. */
+    for (size_t i = 0; i < s->n; i++)
+        if (s->ids[i] && strcmp(s->ids[i], id) == 0) {
+            if (index)
+                *index = i;
+            return PSYS_OK;
+        }
+    return PSYS_ERR_INVALID;
+}
+
+const char *psys_system_particle_id(const psys_system *s, size_t i)
+{
+    return i < s->n ? s->ids[i] : NULL;
+}
+
+psys_status psys_system_set_fixed(psys_system *s, size_t i, bool fixed)
+{
+    if (i >= s->n)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "no particle %zu", i);
+    if (fixed) {
+        s->flags[i] |= PSYS_PARTICLE_FIXED;
+        s->inv_mass[i] = 0.0; /* a = f/m becomes 0 with no branch in the hot loop */
+        for (int k = 0; k < s->dim; k++)
+            s->v[i * s->dim + k] = 0.0;
+    } else {
+        s->flags[i] &= (unsigned char)~PSYS_PARTICLE_FIXED;
+        s->inv_mass[i] = 1.0 / s->mass[i];
+    }
+    return PSYS_OK;
+}
+
+bool psys_system_is_fixed(const psys_system *s, size_t i)
+{
+    return i < s->n && (s->flags[i] & PSYS_PARTICLE_FIXED);
+}
+
+psys_status psys_system_set_particle(psys_system *s, size_t i, const double *x, const double *v)
+{
+    int d = s->dim;
+    if (i >= s->n)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "no particle %zu", i);
+    if ((x && !all_finite(x, d)) || (v && !all_finite(v, d)))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle position and velocity must be finite");
+    if (x)
+        memcpy(s->x + i * d, x, sizeof(double) * (size_t)d);
+    if (v && !(s->flags[i] & PSYS_PARTICLE_FIXED))
+        memcpy(s->v + i * d, v, sizeof(double) * (size_t)d);
+    return PSYS_OK;
+}
+
+psys_status psys_system_add_force(psys_system *s, const psys_force_class *cls, void *data)
+{
+    if (!cls || !cls->apply) {
+        if (cls && cls->destroy)
+            cls->destroy(data);
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "a force class needs an apply function");
+    }
+    if (s->nforces == s->forces_cap) {
+        size_t cap = s->forces_cap ? s->forces_cap * 2 : 8;
+        psys__force *p = psys__realloc(s->forces, cap, sizeof *p);
+        if (!p) {
+            if (cls->destroy)
+                cls->destroy(data);
+            return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a force");
+        }
+        s->forces = p;
+        s->forces_cap = cap;
+    }
+    s->forces[s->nforces].cls = cls;
+    s->forces[s->nforces].data = data;
+    s->nforces++;
+    return PSYS_OK;
+}
+
+size_t psys_system_force_count(const psys_system *s) { return s->nforces; }
+
+const psys_force_class *psys_system_force_class(const psys_system *s, size_t i)
+{
+    return i < s->nforces ? s->forces[i].cls : NULL;
+}
+
+void *psys_system_force_data(const psys_system *s, size_t i)
+{
+    return i < s->nforces ? s->forces[i].data : NULL;
+}
+
+psys_status psys_system_add_spring(psys_system *s, size_t a, size_t b, double ks, double kd, double rest)
+{
+    if (a >= s->n || b >= s->n)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "spring refers to a particle that does not exist");
+    if (a == b)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "a spring needs two different particles");
+    if (!isfinite(ks) || !isfinite(kd) || ks < 0 || kd < 0)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "spring ks and kd must be finite and >= 0");
+    if (!isfinite(rest))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "spring rest length must be finite");
+    if (rest < 0) {
+        double l2 = 0;
+        for (int k = 0; k < s->dim; k++) {
+            double dx = s->x[a * s->dim + k] - s->x[b * s->dim + k];
+            l2 += dx * dx;
+        }
+        rest = sqrt(l2);
+    }
+    if (!s->springs) {
+        void *set = psys__springs_create();
+        if (!set)
+            return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a spring");
+        if (psys_system_add_force(s, &psys_spring_class, set) != PSYS_OK)
+            return s->err.code;
+        s->springs = set;
+    }
+    if (psys__springs_add(s->springs, a, b, ks, kd, rest) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a spring");
+    return PSYS_OK;
+}
+
+size_t psys_system_spring_count(const psys_system *s)
+{
+    return s->springs ? psys__springs_count(s->springs) : 0;
+}
+
+psys_status psys_system_spring(const psys_system *s, size_t k, size_t *a, size_t *b,
+                               double *ks, double *kd, double *rest)
+{
+    if (k >= psys_system_spring_count(s))
+        return PSYS_ERR_INVALID;
+    psys__springs_get(s->springs, k, a, b, ks, kd, rest);
+    return PSYS_OK;
+}
+
+void psys__sys_eval(const psys_system *s, double t, const double *x, const double *v, psys_force_eval *e)
+{
+    e->dim = s->dim;
+    e->n = s->n;
+    e->t = t;
+    e->x = x;
+    e->v = v;
+    e->mass = s->mass;
+    e->inv_mass = s->inv_mass;
+    e->flags = s->flags;
+}
+
+/* Clear f and let every force object add into it. */
+static void accumulate(const psys_system *s, const psys_force_eval *e, double *f)
+{
+    memset(f, 0, sizeof(double) * s->n * (size_t)s->dim);
+    for (size_t i = 0; i < s->nforces; i++)
+        s->forces[i].cls->apply(s->forces[i].data, e, f);
+}
+
+/* ---- ODE view ---- */
+
+static void ode_get_state(void *ctx, double *y)
+{
+    const psys_system *s = ctx;
+    size_t nd = s->n * (size_t)s->dim;
+    memcpy(y, s->x, nd * sizeof(double));
+    memcpy(y + nd, s->v, nd * sizeof(double));
+}
+
+static void ode_set_state(void *ctx, const double *y)
+{
+    psys_system *s = ctx;
+    size_t nd = s->n * (size_t)s->dim;
+    memcpy(s->x, y, nd * sizeof(double));
+    memcpy(s->v, y + nd, nd * sizeof(double));
+}
+
+static double ode_get_time(void *ctx) { return ((const psys_system *)ctx)->t; }
+static void ode_set_time(void *ctx, double t) { ((psys_system *)ctx)->t = t; }
+
+/* Notes' ParticleDerivative with each particle's own mass (ERRATA):
+ * [x' | v'] = [v | f/m]; fixed particles have inv_mass 0 and v 0. */
+static psys_status ode_derivative(void *ctx, double t, const double *y, double *ydot)
+{
+    psys_system *s = ctx;
+    size_t d = (size_t)s->dim, nd = s->n * d;
+    psys_force_eval e;
+    psys__sys_eval(s, t, y, y + nd, &e);
+    accumulate(s, &e, s->f);
+    memcpy(ydot, y + nd, nd * sizeof(double));
+    double *a = ydot + nd;
+    for (size_t i = 0; i < s->n; i++) {
+        double w = s->inv_mass[i];
+        for (size_t k = 0; k < d; k++)
+            a[i * d + k] = s->f[i * d + k] * w;
+    }
+    return PSYS_OK;
+}
+
+psys_ode psys_system_ode(psys_system *s)
+{
+    psys_ode o;
+    memset(&o, 0, sizeof o);
+    o.size = 2 * s->n * (size_t)s->dim;
+    o.npos = s->n * (size_t)s->dim;
+    o.ctx = s;
+    o.get_state = ode_get_state;
+    o.set_state = ode_set_state;
+    o.get_time = ode_get_time;
+    o.set_time = ode_set_time;
+    o.derivative = ode_derivative;
+    o.project = NULL;
+    return o;
+}
+
+size_t psys_system_particle_of_component(const psys_system *s, size_t k)
+{
+    size_t nd = s->n * (size_t)s->dim;
+    return (k < nd ? k : k - nd) / (size_t)s->dim;
+}
+
+psys_status psys_system_compute_forces(psys_system *s, double *f)
+{
+    psys_force_eval e;
+    psys__sys_eval(s, s->t, s->x, s->v, &e);
+    accumulate(s, &e, f);
+    return PSYS_OK;
+}
+
+double psys_system_kinetic_energy(const psys_system *s)
+{
+    size_t d = (size_t)s->dim;
+    double ke = 0;
+    for (size_t i = 0; i < s->n; i++) {
+        if (s->flags[i] & PSYS_PARTICLE_FIXED)
+            continue;
+        double v2 = 0;
+        for (size_t k = 0; k < d; k++)
+            v2 += s->v[i * d + k] * s->v[i * d + k];
+        ke += 0.5 * s->mass[i] * v2;
+    }
+    return ke;
+}
+
+double psys_system_potential_energy(const psys_system *s)
+{
+    psys_force_eval e;
+    psys__sys_eval(s, s->t, s->x, s->v, &e);
+    double u = 0;
+    for (size_t i = 0; i < s->nforces; i++)
+        if (s->forces[i].cls->energy)
+            u += s->forces[i].cls->energy(s->forces[i].data, &e);
+    return u;
+}
+
+/* ---- Jacobians ---- */
+
+typedef struct dense_sink {
+    psys_jacobian base;
+    size_t nd;
+    int dim;
+    double *dfdx, *dfdv;
+} dense_sink;
+
+static void dense_add(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv)
+{
+    dense_sink *ds = (dense_sink *)J;
+    int d = ds->dim;
+    for (int r = 0; r < d; r++)
+        for (int c = 0; c < d; c++) {
+            size_t at = (i * d + r) * ds->nd + j * d + c;
+            if (dfdx)
+                ds->dfdx[at] += dfdx[r * d + c];
+            if (dfdv)
+                ds->dfdv[at] += dfdv[r * d + c];
+        }
+}
+
+void psys_jacobian_add(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv)
+{
+    J->add(J, i, j, dfdx, dfdv);
+}
+
+psys_status psys_system_dense_jacobian(psys_system *s, double *dfdx, double *dfdv)
+{
+    size_t nd = s->n * (size_t)s->dim;
+    dense_sink ds = {{dense_add, NULL}, nd, s->dim, dfdx, dfdv};
+    memset(dfdx, 0, nd * nd * sizeof(double));
+    memset(dfdv, 0, nd * nd * sizeof(double));
+    psys_force_eval e;
+    psys__sys_eval(s, s->t, s->x, s->v, &e);
+    for (size_t i = 0; i < s->nforces; i++) {
+        if (!s->forces[i].cls->jacobian)
+            return psys__fail(&s->err, PSYS_ERR_UNSUPPORTED, "force \"%s\" provides no Jacobian",
+                              s->forces[i].cls->name);
+        s->forces[i].cls->jacobian(s->forces[i].data, &e, &ds.base);
+    }
+    return PSYS_OK;
+}
+
+psys_status psys_system_fd_jacobian(psys_system *s, double eps, double *dfdx, double *dfdv)
+{
+    size_t nd = s->n * (size_t)s->dim;
+    double *fp = psys__calloc(nd, sizeof(double)), *fm = psys__calloc(nd, sizeof(double));
+    if (!fp || !fm) {
+        free(fp);
+        free(fm);
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory for finite differences");
+    }
+    double *vars[2] = {s->x, s->v};
+    double *outs[2] = {dfdx, dfdv};
+    for (int w = 0; w < 2; w++)
+        for (size_t j = 0; j < nd; j++) {
+            double keep = vars[w][j];
+            vars[w][j] = keep + eps;
+            psys_system_compute_forces(s, fp);
+            vars[w][j] = keep - eps;
+            psys_system_compute_forces(s, fm);
+            vars[w][j] = keep;
+            for (size_t i = 0; i < nd; i++)
+                outs[w][i * nd + j] = (fp[i] - fm[i]) / (2 * eps);
+        }
+    free(fp);
+    free(fm);
+    return PSYS_OK;
+}

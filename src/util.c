@@ -1,0 +1,73 @@
+/* Error reporting and allocation helpers. */
+#include "internal.h"
+
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *psys_status_name(psys_status s)
+{
+    switch (s) {
+    case PSYS_OK: return "ok";
+    case PSYS_ERR_INVALID: return "invalid";
+    case PSYS_ERR_NOMEM: return "out of memory";
+    case PSYS_ERR_IO: return "i/o error";
+    case PSYS_ERR_NONFINITE: return "non-finite state";
+    case PSYS_ERR_UNSUPPORTED: return "unsupported";
+    }
+    return "unknown";
+}
+
+psys_status psys__vfail(psys_error *err, psys_status code, const char *fmt, va_list ap)
+{
+    if (err) {
+        err->code = code;
+        vsnprintf(err->message, sizeof err->message, fmt, ap);
+    }
+    return code;
+}
+
+psys_status psys__fail(psys_error *err, psys_status code, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    psys__vfail(err, code, fmt, ap);
+    va_end(ap);
+    return code;
+}
+
+void psys__ok(psys_error *err)
+{
+    if (err) {
+        err->code = PSYS_OK;
+        err->message[0] = '\0';
+    }
+}
+
+void *psys__calloc(size_t n, size_t size)
+{
+    if (n == 0 || size == 0)
+        n = size = 1;
+    if (n > SIZE_MAX / size)
+        return NULL;
+    return calloc(n, size);
+}
+
+void *psys__realloc(void *p, size_t n, size_t size)
+{
+    if (n == 0 || size == 0)
+        n = size = 1;
+    if (n > SIZE_MAX / size)
+        return NULL;
+    return realloc(p, n * size);
+}
+
+char *psys__strdup(const char *s)
+{
+    size_t len = strlen(s) + 1;
+    char *d = malloc(len);
+    if (d)
+        memcpy(d, s, len);
+    return d;
+}
