@@ -72,11 +72,13 @@ void psys__springs_get(const void *set, size_t k, size_t *a, size_t *b, double *
 }
 
 /* d is a compile-time constant at each call site, so the inner loops unroll. */
-static inline void springs_apply_d(const springs *s, const psys_force_eval *e, double *f, const int d)
+static inline void springs_apply_d(const springs *s, const psys_force_eval *e, double *restrict f, const int d)
 {
-    const double *x = e->x, *v = e->v;
+    const double *restrict x = e->x, *restrict v = e->v;
+    const uint32_t *restrict ia_ = s->a, *restrict ib_ = s->b;
+    const double *restrict ks = s->ks, *restrict kd = s->kd, *restrict rest = s->rest;
     for (size_t k = 0; k < s->n; k++) {
-        size_t ia = (size_t)s->a[k] * d, ib = (size_t)s->b[k] * d;
+        size_t ia = (size_t)ia_[k] * d, ib = (size_t)ib_[k] * d;
         double l[3], ld[3], len2 = 0, dot = 0;
         for (int c = 0; c < d; c++) {
             l[c] = x[ia + c] - x[ib + c];
@@ -86,8 +88,8 @@ static inline void springs_apply_d(const springs *s, const psys_force_eval *e, d
         }
         if (len2 == 0)
             continue;
-        double len = sqrt(len2);
-        double mag = (s->ks[k] * (len - s->rest[k]) + s->kd[k] * dot / len) / len;
+        double len = sqrt(len2), inv = 1.0 / len;
+        double mag = (ks[k] * (len - rest[k]) + kd[k] * dot * inv) * inv;
         for (int c = 0; c < d; c++) {
             double fc = mag * l[c];
             f[ia + c] -= fc;

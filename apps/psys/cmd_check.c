@@ -48,29 +48,31 @@ int cmd_check(int argc, char **argv)
     for (size_t i = 0; i < psys_system_count(sys); i++)
         fixed += psys_system_is_fixed(sys, i);
     double ke = psys_system_kinetic_energy(sys), pe = psys_system_potential_energy(sys);
-    printf("scene: %s\n", name);
-    printf("dim: %d\n", psys_system_dim(sys));
-    printf("particles: %zu\n", psys_system_count(sys));
-    printf("fixed: %zu\n", fixed);
-    printf("springs: %zu\n", psys_system_spring_count(sys));
-    printf("forces: %zu\n", psys_system_force_count(sys));
-    printf("integrator: %s\n", set->integrator);
-    printf("dt: %.17g\n", set->dt);
+    /* With --save - the scene goes to standard output, so the summary moves to stderr. */
+    FILE *info = save && strcmp(save, "-") == 0 ? stderr : stdout;
+    fprintf(info, "scene: %s\n", name);
+    fprintf(info, "dim: %d\n", psys_system_dim(sys));
+    fprintf(info, "particles: %zu\n", psys_system_count(sys));
+    fprintf(info, "fixed: %zu\n", fixed);
+    fprintf(info, "springs: %zu\n", psys_system_spring_count(sys));
+    fprintf(info, "forces: %zu\n", psys_system_force_count(sys));
+    fprintf(info, "integrator: %s\n", set->integrator);
+    fprintf(info, "dt: %.17g\n", set->dt);
     if (set->use_steps) {
-        printf("steps: %lld\n", set->steps);
-        printf("duration: %.17g\n", (double)set->steps * set->dt);
+        fprintf(info, "steps: %lld\n", set->steps);
+        fprintf(info, "duration: %.17g\n", (double)set->steps * set->dt);
     } else {
         if (strcmp(set->integrator, "rk45") == 0) {
-            printf("steps: adaptive\n");
+            fprintf(info, "steps: adaptive\n");
         } else {
             double q = set->duration / set->dt;
-            printf("steps: %.0f\n", ceil(q - 1e-9 * q));
+            fprintf(info, "steps: %.0f\n", ceil(q - 1e-9 * q));
         }
-        printf("duration: %.17g\n", set->duration);
+        fprintf(info, "duration: %.17g\n", set->duration);
     }
-    printf("kinetic: %.17g\n", ke);
-    printf("potential: %.17g\n", pe);
-    printf("energy: %.17g\n", ke + pe);
+    fprintf(info, "kinetic: %.17g\n", ke);
+    fprintf(info, "potential: %.17g\n", pe);
+    fprintf(info, "energy: %.17g\n", ke + pe);
     int status = EXIT_OK;
     if (save) {
         const psys_resume_state *rs = psys_scene_resume_state(scene);
