@@ -24,7 +24,7 @@ static double gravity_energy(void *data, const psys_force_eval *e)
     int d = e->dim;
     double u = 0;
     for (size_t i = 0; i < e->n; i++) {
-        if (e->flags[i] & PSYS_PARTICLE_FIXED)
+        if (e->flags[i] & PSYS_PARTICLE_NOT_FREE)
             continue;
         double gx = 0;
         for (int k = 0; k < d; k++)

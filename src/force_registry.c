@@ -6,5 +6,6 @@ const psys__force_io *const psys__force_types[] = {
     &psys__gravity_io,
     &psys__drag_io,
     &psys__spring_io,
+    &psys__mouse_io,
     NULL,
 };

@@ -10,10 +10,22 @@
 #include <stdint.h>
 #include <stdlib.h>
 
+/* Muscles (Miller's snakes and worms): spring k with a muscle has rest
+ * length r(t) = rest[k]·(1 + amp·sin(omega·t + phase)) at evaluation time t.
+ * Muscle arrays stay NULL until the first muscle exists, so a set without
+ * muscles runs the plain loop on rest[] with no extra work. */
+#define NO_MUSCLE UINT32_MAX
+
 typedef struct springs {
     size_t n, cap;
     uint32_t *a, *b;
     double *ks, *kd, *rest;
+    uint32_t *mslot;  /* cap entries once a muscle exists: muscle slot of spring k or NO_MUSCLE */
+    double *rest_t;   /* cap entries once a muscle exists: rest length at the latest evaluation
+                         time (equal to rest[k] for springs without a muscle) */
+    size_t nm, mcap;  /* muscles, compact: spring, amplitude, omega, phase */
+    uint32_t *midx;
+    double *mamp, *momega, *mphase;
 } springs;
 
 static void springs_destroy(void *data)
@@ -26,6 +38,12 @@ static void springs_destroy(void *data)
     free(s->ks);
     free(s->kd);
     free(s->rest);
+    free(s->mslot);
+    free(s->rest_t);
+    free(s->midx);
+    free(s->mamp);
+    free(s->momega);
+    free(s->mphase);
     free(s);
 }
 
@@ -49,8 +67,16 @@ psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double k
         GROW(ks, double)
         GROW(kd, double)
         GROW(rest, double)
+        if (s->mslot) {
+            GROW(mslot, uint32_t)
+            GROW(rest_t, double)
+        }
 #undef GROW
         s->cap = cap;
+    }
+    if (s->mslot) {
+        s->mslot[s->n] = NO_MUSCLE;
+        s->rest_t[s->n] = rest;
     }
     s->a[s->n] = (uint32_t)a;
     s->b[s->n] = (uint32_t)b;

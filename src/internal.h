@@ -33,6 +33,34 @@ typedef struct psys__force {
     void *data;
 } psys__force;
 
+/** Controller kinds. */
+typedef enum psys__control_kind {
+    PSYS__CONTROL_CIRCLE,
+    PSYS__CONTROL_OSCILLATE,
+    PSYS__CONTROL_KEYFRAMES,
+    PSYS__CONTROL_CALLBACK
+} psys__control_kind;
+
+/** One controlled particle. */
+typedef struct psys__controller {
+    size_t particle;
+    psys__control_kind kind;
+    double center[3], u[3], w[3], axis[3]; /* circle: basis u, w; oscillate: u = unit direction */
+    double radius, amplitude, omega, phase;
+    double *frames;       /* keyframes: count × (1 + dim) */
+    size_t nframes;
+    psys_controller_fn fn;
+    void *ctx;
+} psys__controller;
+
+/** One plane (normal unit length). */
+typedef struct psys__plane {
+    double p[3], n[3];
+    double restitution, friction;
+    bool stick;
+    psys_response response;
+} psys__plane;
+
 struct psys_system {
     int dim;
     size_t n, cap;
@@ -45,8 +73,24 @@ struct psys_system {
     psys__force *forces;
     size_t nforces, forces_cap;
     void *springs;         /* the system's spring set (also in forces), or NULL */
+    psys__controller *ctrl;
+    size_t nctrl, ctrl_cap;
+    psys__plane *planes;
+    size_t nplanes, planes_cap;
+    double *scratch;       /* 2·cap·dim doubles for collision rollback, allocated with planes */
     psys_error err;
 };
+
+/** Controller state at time t into x and v (dim numbers each). */
+void psys__controller_eval(const psys__controller *c, int dim, double t, double *x, double *v);
+/** Free a controller's owned memory. */
+void psys__controller_free(psys__controller *c);
+/** Index of particle i's controller in sys->ctrl, or sys->nctrl if none. */
+size_t psys__controller_find(const psys_system *sys, size_t i);
+/** Contact forces and friction of planes into f at state (x, v). */
+void psys__contact_forces(const psys_system *sys, const double *x, const double *v, double *f);
+/** Make sure collision scratch space fits the particles (called when growing). */
+psys_status psys__planes_reserve(psys_system *sys);
 
 /** Fill a force evaluation view of the system from explicit x and v. */
 void psys__sys_eval(const psys_system *s, double t, const double *x, const double *v, psys_force_eval *e);
@@ -83,6 +127,7 @@ typedef struct psys__force_io {
 extern const psys__force_io psys__gravity_io;
 extern const psys__force_io psys__drag_io;
 extern const psys__force_io psys__spring_io;
+extern const psys__force_io psys__mouse_io;
 
 /** All force types known to scenes, NULL-terminated. */
 extern const psys__force_io *const psys__force_types[];
@@ -107,6 +152,12 @@ psys_status psys__parse_vec(psys__parse *p, const struct cJSON *obj, const char 
                             const double *def, double *out);
 /** Read a particle reference (id string or index) at key. */
 psys_status psys__parse_ref(psys__parse *p, const struct cJSON *obj, const char *path, const char *key, size_t *out);
+/** Parse a JSON array of frames [[t, x...], ...] (t strictly increasing) at
+ *  item; *frames is malloc'ed count × (1 + dim). */
+psys_status psys__parse_frames(psys__parse *p, const struct cJSON *item, const char *path, double **frames,
+                               size_t *count);
+/** JSON array of frames (exact numbers). */
+struct cJSON *psys__frames_json(const double *frames, size_t count, int dim);
 /** Add to arr a JSON reference to particle i (its id, else its index). */
 struct cJSON *psys__ref_json(const psys_system *sys, size_t i);
 /** A JSON number that reads back as exactly x. */

@@ -156,7 +156,7 @@ psys_status psys_run_step(psys_run *r, psys_error *err)
         h = last_of_duration ? r->t_end - t : r->dt;
         if (!(h > 0))
             h = r->dt * 1e-12; /* degenerate: duration ended within rounding of the previous step */
-        psys_status st = psys_solver_step(r->solver, h, NULL);
+        psys_status st = psys_system_advance(r->sys, r->solver, h, NULL);
         if (st == PSYS_ERR_NONFINITE) {
             nonfinite_message(r, err, t);
             return st;
@@ -171,6 +171,9 @@ psys_status psys_run_step(psys_run *r, psys_error *err)
         } else {
             psys_system_set_time(r->sys, r->base_t + (double)(r->step - r->base_step) * r->dt);
         }
+        /* Controlled particles sit exactly on their paths at the printed time
+         * (the solver projected them at its own t + h). */
+        psys_system_apply_controllers(r->sys, psys_system_time(r->sys));
         r->frame_now = r->step % r->every == 0;
         return PSYS_OK;
     }
@@ -178,7 +181,7 @@ psys_status psys_run_step(psys_run *r, psys_error *err)
     if (r->by_duration && r->t_end < target)
         target = r->t_end;
     double h_taken;
-    psys_status st = psys_solver_step(r->solver, target - t, &h_taken);
+    psys_status st = psys_system_advance(r->sys, r->solver, target - t, &h_taken);
     if (st == PSYS_ERR_NONFINITE) {
         nonfinite_message(r, err, t);
         return st;
@@ -188,6 +191,7 @@ psys_status psys_run_step(psys_run *r, psys_error *err)
     r->step++;
     if (h_taken >= target - t) {
         psys_system_set_time(r->sys, target); /* land exactly, not t + h rounded */
+        psys_system_apply_controllers(r->sys, target);
         if (target == r->next_frame_t) {
             r->frame_now = true;
             double j = floor((target - r->base_t) / r->frame_dt + 0.5) + 1;

@@ -47,12 +47,17 @@ psys_status psys__parse_fail(psys__parse *p, const char *path, const cJSON *item
     return psys__fail(p->err, PSYS_ERR_INVALID, "%s: %s", path, what);
 }
 
+/* out = path + "." + key (or key at the top level), truncated to cap. */
 static void key_path(char *out, size_t cap, const char *path, const char *key)
 {
-    if (path[0])
-        snprintf(out, cap, "%s.%s", path, key);
-    else
-        snprintf(out, cap, "%s", key);
+    size_t n = 0;
+    for (const char *c = path; *c && n + 1 < cap; c++)
+        out[n++] = *c;
+    if (path[0] && n + 1 < cap)
+        out[n++] = '.';
+    for (const char *c = key; *c && n + 1 < cap; c++)
+        out[n++] = *c;
+    out[n] = '\0';
 }
 
 psys_status psys__parse_keys(psys__parse *p, const cJSON *obj, const char *path, const char *const *allowed)
@@ -204,6 +209,122 @@ static psys_status unsupported(psys__parse *p, const char *path, const cJSON *it
     return psys__parse_fail(p, path, item, "is not supported by this version of psys yet");
 }
 
+psys_status psys__parse_frames(psys__parse *p, const cJSON *item, const char *path, double **frames,
+                               size_t *count)
+{
+    int d = p->sys->dim;
+    size_t stride = 1 + (size_t)d;
+    *frames = NULL;
+    *count = 0;
+    if (!item)
+        return psys__parse_fail(p, path, NULL, "required key missing");
+    if (!cJSON_IsArray(item) || cJSON_GetArraySize(item) < 1)
+        return psys__parse_fail(p, path, item, "must be a non-empty array of frames [t, x...]");
+    size_t n = (size_t)cJSON_GetArraySize(item);
+    double *f = psys__calloc(n * stride, sizeof(double));
+    if (!f)
+        return psys__fail(p->err, PSYS_ERR_NOMEM, "%s: out of memory", path);
+    size_t k = 0;
+    char ep[300];
+    for (const cJSON *fr = item->child; fr; fr = fr->next, k++) {
+        snprintf(ep, sizeof ep, "%s[%zu]", path, k);
+        if (!cJSON_IsArray(fr) || cJSON_GetArraySize(fr) != (int)stride) {
+            free(f);
+            return psys__parse_fail(p, ep, fr, "must be [t, %s] (%zu numbers)", d == 2 ? "x, y" : "x, y, z", stride);
+        }
+        size_t c = 0;
+        for (const cJSON *num = fr->child; num; num = num->next, c++) {
+            if (!cJSON_IsNumber(num) || !isfinite(num->valuedouble)) {
+                free(f);
+                return psys__parse_fail(p, ep, fr, "must contain finite numbers");
+            }
+            f[k * stride + c] = num->valuedouble;
+        }
+        if (k > 0 && !(f[k * stride] > f[(k - 1) * stride])) {
+            free(f);
+            return psys__parse_fail(p, ep, fr, "frame times must increase strictly");
+        }
+    }
+    *frames = f;
+    *count = n;
+    return PSYS_OK;
+}
+
+/* particle "control": circle / oscillate / keyframes (DESIGN §2, §3a). */
+static psys_status parse_control(psys__parse *p, const cJSON *ctl, const char *path, size_t i)
+{
+    static const char *const circle_keys[] = {"type", "center", "radius", "omega", "phase", "axis", NULL};
+    static const char *const osc_keys[] = {"type", "center", "direction", "amplitude", "omega", "phase", NULL};
+    static const char *const key_keys[] = {"type", "frames", "linear", NULL};
+    psys_system *sys = p->sys;
+    char kp[256];
+    if (!cJSON_IsObject(ctl))
+        return psys__parse_fail(p, path, ctl, "must be an object");
+    const cJSON *type = cJSON_GetObjectItemCaseSensitive(ctl, "type");
+    key_path(kp, sizeof kp, path, "type");
+    if (!type)
+        return psys__parse_fail(p, kp, NULL, "required key missing");
+    if (!cJSON_IsString(type))
+        return psys__parse_fail(p, kp, type, "must be a string");
+    psys_status st;
+    double c[3], dir[3], axis[3], zaxis[3] = {0, 0, 1}, r, w, ph, a;
+    if (strcmp(type->valuestring, "circle") == 0) {
+        if ((st = psys__parse_keys(p, ctl, path, circle_keys)) != PSYS_OK
+            || (st = psys__parse_vec(p, ctl, path, "center", NULL, c)) != PSYS_OK
+            || (st = psys__parse_number(p, ctl, path, "radius", false, 0, 0, false, &r)) != PSYS_OK
+            || (st = psys__parse_number(p, ctl, path, "omega", false, 0, -INFINITY, false, &w)) != PSYS_OK
+            || (st = psys__parse_number(p, ctl, path, "phase", true, 0, -INFINITY, false, &ph)) != PSYS_OK)
+            return st;
+        if (sys->dim == 2 && cJSON_GetObjectItemCaseSensitive(ctl, "axis")) {
+            key_path(kp, sizeof kp, path, "axis");
+            return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "axis"), "only exists in 3-D");
+        }
+        if (sys->dim == 3 && (st = psys__parse_vec(p, ctl, path, "axis", zaxis, axis)) != PSYS_OK)
+            return st;
+        if (psys_system_control_circle(sys, i, c, r, w, ph, sys->dim == 3 ? axis : NULL) != PSYS_OK)
+            return psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
+        return PSYS_OK;
+    }
+    if (strcmp(type->valuestring, "oscillate") == 0) {
+        if ((st = psys__parse_keys(p, ctl, path, osc_keys)) != PSYS_OK
+            || (st = psys__parse_vec(p, ctl, path, "center", NULL, c)) != PSYS_OK
+            || (st = psys__parse_vec(p, ctl, path, "direction", NULL, dir)) != PSYS_OK
+            || (st = psys__parse_number(p, ctl, path, "amplitude", false, 0, -INFINITY, false, &a)) != PSYS_OK
+            || (st = psys__parse_number(p, ctl, path, "omega", false, 0, -INFINITY, false, &w)) != PSYS_OK
+            || (st = psys__parse_number(p, ctl, path, "phase", true, 0, -INFINITY, false, &ph)) != PSYS_OK)
+            return st;
+        if (psys_system_control_oscillate(sys, i, c, dir, a, w, ph) != PSYS_OK) {
+            key_path(kp, sizeof kp, path, "direction");
+            return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "direction"),
+                                    "must be a nonzero vector");
+        }
+        return PSYS_OK;
+    }
+    if (strcmp(type->valuestring, "keyframes") == 0) {
+        bool linear = true;
+        double *frames;
+        size_t count;
+        if ((st = psys__parse_keys(p, ctl, path, key_keys)) != PSYS_OK
+            || (st = parse_bool(p, ctl, path, "linear", &linear)) != PSYS_OK)
+            return st;
+        if (!linear) {
+            key_path(kp, sizeof kp, path, "linear");
+            return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "linear"),
+                                    "only linear keyframes are supported");
+        }
+        key_path(kp, sizeof kp, path, "frames");
+        if ((st = psys__parse_frames(p, cJSON_GetObjectItemCaseSensitive(ctl, "frames"), kp, &frames, &count))
+            != PSYS_OK)
+            return st;
+        st = psys_system_control_keyframes(sys, i, frames, count);
+        free(frames);
+        if (st != PSYS_OK)
+            return psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
+        return PSYS_OK;
+    }
+    return psys__parse_fail(p, kp, type, "unknown control type (known: circle, oscillate, keyframes)");
+}
+
 static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *path)
 {
     static const char *const keys[] = {"id", "x", "v", "mass", "fixed", "control", "charge", NULL};
@@ -213,7 +334,7 @@ static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *
     if (st != PSYS_OK)
         return st;
     char kp[256];
-    for (const char *const *k = (const char *const[]){"control", "charge", NULL}; *k; k++) {
+    for (const char *const *k = (const char *const[]){"charge", NULL}; *k; k++) {
         const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, *k);
         if (it) {
             key_path(kp, sizeof kp, path, *k);
@@ -238,6 +359,13 @@ static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *
         return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));
     if (fixed)
         psys_system_set_fixed(p->sys, i, true);
+    const cJSON *ctl = cJSON_GetObjectItemCaseSensitive(obj, "control");
+    if (ctl) {
+        key_path(kp, sizeof kp, path, "control");
+        if (fixed)
+            return psys__parse_fail(p, kp, NULL, "a particle cannot be both fixed and controlled");
+        return parse_control(p, ctl, kp, i);
+    }
     return PSYS_OK;
 }
 
@@ -255,7 +383,7 @@ static psys_status parse_force(psys__parse *p, const cJSON *obj, const char *pat
     for (const psys__force_io *const *io = psys__force_types; *io; io++)
         if (strcmp((*io)->type, type->valuestring) == 0)
             return (*io)->parse(p, obj, path);
-    static const char *const planned[] = {"behavior", "pair", "mouse-spring", NULL};
+    static const char *const planned[] = {"behavior", "pair", NULL};
     for (const char *const *t = planned; *t; t++)
         if (strcmp(*t, type->valuestring) == 0)
             return unsupported(p, kp, type);
@@ -279,6 +407,55 @@ static psys_status parse_list(psys__parse *p, const cJSON *root, const char *key
         if (st != PSYS_OK)
             return st;
     }
+    return PSYS_OK;
+}
+
+/* planes: {point, normal, restitution, friction (number or "stick"), response} */
+static psys_status parse_plane(psys__parse *p, const cJSON *obj, const char *path)
+{
+    static const char *const keys[] = {"point", "normal", "restitution", "friction", "response", NULL};
+    psys_plane_def def = psys_plane_def_default();
+    char kp[256];
+    psys_status st;
+    if (!cJSON_IsObject(obj))
+        return psys__parse_fail(p, path, obj, "a plane must be an object");
+    if ((st = psys__parse_keys(p, obj, path, keys)) != PSYS_OK
+        || (st = psys__parse_vec(p, obj, path, "point", NULL, def.point)) != PSYS_OK
+        || (st = psys__parse_vec(p, obj, path, "normal", NULL, def.normal)) != PSYS_OK
+        || (st = psys__parse_number(p, obj, path, "restitution", true, 0.5, 0, false, &def.restitution)) != PSYS_OK)
+        return st;
+    double n2 = 0;
+    for (int k = 0; k < p->sys->dim; k++)
+        n2 += def.normal[k] * def.normal[k];
+    if (!(n2 > 0)) {
+        key_path(kp, sizeof kp, path, "normal");
+        return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(obj, "normal"), "must not be zero");
+    }
+    if (def.restitution > 1) {
+        key_path(kp, sizeof kp, path, "restitution");
+        return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(obj, "restitution"), "must be from 0 to 1");
+    }
+    const cJSON *fr = cJSON_GetObjectItemCaseSensitive(obj, "friction");
+    if (cJSON_IsString(fr) && strcmp(fr->valuestring, "stick") == 0) {
+        def.stick = true;
+    } else if (fr && !cJSON_IsNumber(fr)) {
+        key_path(kp, sizeof kp, path, "friction");
+        return psys__parse_fail(p, kp, fr, "must be a number >= 0 or \"stick\"");
+    } else if ((st = psys__parse_number(p, obj, path, "friction", true, 0, 0, false, &def.friction)) != PSYS_OK) {
+        return st;
+    }
+    const cJSON *resp = cJSON_GetObjectItemCaseSensitive(obj, "response");
+    if (resp) {
+        key_path(kp, sizeof kp, path, "response");
+        if (cJSON_IsString(resp) && strcmp(resp->valuestring, "rollback") == 0)
+            def.response = PSYS_RESPONSE_ROLLBACK;
+        else if (cJSON_IsString(resp) && strcmp(resp->valuestring, "displace") == 0)
+            def.response = PSYS_RESPONSE_DISPLACE;
+        else
+            return psys__parse_fail(p, kp, resp, "must be \"rollback\" or \"displace\"");
+    }
+    if (psys_system_add_plane(p->sys, &def) != PSYS_OK)
+        return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));
     return PSYS_OK;
 }
 
@@ -370,7 +547,7 @@ static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *sce
     if ((st = psys__parse_number(p, root, "", "duration", true, set->duration, 0, false, &set->duration)) != PSYS_OK)
         return st;
     set->use_steps = has_steps;
-    for (const char *const *k = (const char *const[]){"planes", "structures", "box", NULL}; *k; k++) {
+    for (const char *const *k = (const char *const[]){"structures", "box", NULL}; *k; k++) {
         const cJSON *it = cJSON_GetObjectItemCaseSensitive(root, *k);
         if (it)
             return unsupported(p, *k, it);
@@ -379,11 +556,14 @@ static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *sce
         return p->err->code;
     if ((st = parse_list(p, root, "particles", parse_particle)) != PSYS_OK
         || (st = parse_list(p, root, "forces", parse_force)) != PSYS_OK
+        || (st = parse_list(p, root, "planes", parse_plane)) != PSYS_OK
         || (st = parse_output(p, root, set)) != PSYS_OK
         || (st = parse_checkpoint(p, root, &scene->resume)) != PSYS_OK)
         return st;
-    if (scene->resume.present)
+    if (scene->resume.present) {
         psys_system_set_time(scene->sys, scene->resume.t);
+        psys_system_apply_controllers(scene->sys, scene->resume.t);
+    }
     return PSYS_OK;
 }
 

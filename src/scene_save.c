@@ -52,6 +52,78 @@ cJSON *psys__ref_json(const psys_system *sys, size_t i)
     return id ? cJSON_CreateString(id) : cJSON_CreateNumber((double)i);
 }
 
+cJSON *psys__frames_json(const double *frames, size_t count, int dim)
+{
+    cJSON *arr = cJSON_CreateArray();
+    for (size_t k = 0; arr && k < count; k++) {
+        cJSON *fr = psys__vec_json(frames + k * (1 + (size_t)dim), 1 + dim);
+        if (!fr) {
+            cJSON_Delete(arr);
+            return NULL;
+        }
+        cJSON_AddItemToArray(arr, fr);
+    }
+    return arr;
+}
+
+static cJSON *control_json(const psys__controller *c, int d)
+{
+    cJSON *o = cJSON_CreateObject();
+    bool ok = o != NULL;
+    switch (c->kind) {
+    case PSYS__CONTROL_CIRCLE:
+        ok = ok && cJSON_AddStringToObject(o, "type", "circle")
+             && cJSON_AddItemToObject(o, "center", psys__vec_json(c->center, d))
+             && psys__add_num(o, "radius", c->radius) && psys__add_num(o, "omega", c->omega)
+             && psys__add_num(o, "phase", c->phase)
+             && (d == 2 || cJSON_AddItemToObject(o, "axis", psys__vec_json(c->axis, 3)));
+        break;
+    case PSYS__CONTROL_OSCILLATE:
+        ok = ok && cJSON_AddStringToObject(o, "type", "oscillate")
+             && cJSON_AddItemToObject(o, "center", psys__vec_json(c->center, d))
+             && cJSON_AddItemToObject(o, "direction", psys__vec_json(c->u, d))
+             && psys__add_num(o, "amplitude", c->amplitude) && psys__add_num(o, "omega", c->omega)
+             && psys__add_num(o, "phase", c->phase);
+        break;
+    case PSYS__CONTROL_KEYFRAMES:
+        ok = ok && cJSON_AddStringToObject(o, "type", "keyframes")
+             && cJSON_AddItemToObject(o, "frames", psys__frames_json(c->frames, c->nframes, d));
+        break;
+    case PSYS__CONTROL_CALLBACK:
+        ok = false;
+        break;
+    }
+    if (!ok) {
+        cJSON_Delete(o);
+        return NULL;
+    }
+    return o;
+}
+
+static bool add_planes(const psys_system *sys, cJSON *root)
+{
+    if (!sys->nplanes)
+        return true;
+    cJSON *arr = cJSON_AddArrayToObject(root, "planes");
+    if (!arr)
+        return false;
+    for (size_t k = 0; k < sys->nplanes; k++) {
+        const psys__plane *pl = &sys->planes[k];
+        cJSON *o = cJSON_CreateObject();
+        if (!o)
+            return false;
+        cJSON_AddItemToArray(arr, o);
+        if (!cJSON_AddItemToObject(o, "point", psys__vec_json(pl->p, sys->dim))
+            || !cJSON_AddItemToObject(o, "normal", psys__vec_json(pl->n, sys->dim))
+            || !psys__add_num(o, "restitution", pl->restitution)
+            || !(pl->stick ? cJSON_AddStringToObject(o, "friction", "stick") != NULL
+                           : psys__add_num(o, "friction", pl->friction) != NULL)
+            || !cJSON_AddStringToObject(o, "response", pl->response == PSYS_RESPONSE_DISPLACE ? "displace" : "rollback"))
+            return false;
+    }
+    return true;
+}
+
 static bool add_particles(const psys_system *sys, cJSON *root)
 {
     cJSON *arr = cJSON_AddArrayToObject(root, "particles");
@@ -69,6 +141,14 @@ static bool add_particles(const psys_system *sys, cJSON *root)
             || !psys__add_num(o, "mass", sys->mass[i])
             || ((sys->flags[i] & PSYS_PARTICLE_FIXED) && !cJSON_AddTrueToObject(o, "fixed")))
             return false;
+        if (sys->flags[i] & PSYS_PARTICLE_CONTROLLED) {
+            size_t k = psys__controller_find(sys, i);
+            cJSON *c = control_json(&sys->ctrl[k], d);
+            if (!c || !cJSON_AddItemToObject(o, "control", c)) {
+                cJSON_Delete(c);
+                return false;
+            }
+        }
     }
     return true;
 }
@@ -98,6 +178,7 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
 {
     const psys_settings *set = &scene->settings;
     const psys_system *sys = scene->sys;
+    psys__ok(err);
     cJSON *root = cJSON_CreateObject();
     bool ok = root && psys__add_num(root, "psys", 1) && psys__add_num(root, "dim", sys->dim)
               && cJSON_AddStringToObject(root, "integrator", set->integrator)
@@ -110,7 +191,16 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
         psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
         return NULL;
     }
-    if (add_forces(sys, root, err) != PSYS_OK) {
+    for (size_t k = 0; k < sys->nctrl; k++)
+        if (sys->ctrl[k].kind == PSYS__CONTROL_CALLBACK) {
+            cJSON_Delete(root);
+            psys__fail(err, PSYS_ERR_UNSUPPORTED, "particle %zu is driven by a C callback and has no scene form",
+                       sys->ctrl[k].particle);
+            return NULL;
+        }
+    if (add_forces(sys, root, err) != PSYS_OK || !add_planes(sys, root)) {
+        if (err && err->code == PSYS_OK)
+            psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
         cJSON_Delete(root);
         return NULL;
     }

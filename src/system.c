@@ -30,6 +30,11 @@ void psys_system_destroy(psys_system *s)
             s->forces[i].cls->destroy(s->forces[i].data);
     for (size_t i = 0; i < s->n; i++)
         free(s->ids[i]);
+    for (size_t k = 0; k < s->nctrl; k++)
+        psys__controller_free(&s->ctrl[k]);
+    free(s->ctrl);
+    free(s->planes);
+    free(s->scratch);
     free(s->forces);
     free(s->x);
     free(s->v);
@@ -82,7 +87,7 @@ static psys_status reserve(psys_system *s, size_t want)
     GROW(ids, cap, char *)
 #undef GROW
     s->cap = cap;
-    return PSYS_OK;
+    return psys__planes_reserve(s);
 }
 
 psys_status psys_system_add_particle(psys_system *s, const double *x, const double *v,
@@ -140,6 +145,8 @@ psys_status psys_system_set_fixed(psys_system *s, size_t i, bool fixed)
 {
     if (i >= s->n)
         return psys__fail(&s->err, PSYS_ERR_INVALID, "no particle %zu", i);
+    if (fixed && (s->flags[i] & PSYS_PARTICLE_CONTROLLED))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle %zu is controlled; release it before fixing it", i);
     if (fixed) {
         s->flags[i] |= PSYS_PARTICLE_FIXED;
         s->inv_mass[i] = 0.0; /* a = f/m becomes 0 with no branch in the hot loop */
@@ -147,7 +154,8 @@ psys_status psys_system_set_fixed(psys_system *s, size_t i, bool fixed)
             s->v[i * s->dim + k] = 0.0;
     } else {
         s->flags[i] &= (unsigned char)~PSYS_PARTICLE_FIXED;
-        s->inv_mass[i] = 1.0 / s->mass[i];
+        if (!(s->flags[i] & PSYS_PARTICLE_CONTROLLED))
+            s->inv_mass[i] = 1.0 / s->mass[i];
     }
     return PSYS_OK;
 }
@@ -264,12 +272,15 @@ void psys__sys_eval(const psys_system *s, double t, const double *x, const doubl
     e->flags = s->flags;
 }
 
-/* Clear f and let every force object add into it. */
+/* Clear f, let every force object add into it, then the planes' contact
+ * forces, which depend on the total applied force (notes §7.3). */
 static void accumulate(const psys_system *s, const psys_force_eval *e, double *f)
 {
     memset(f, 0, sizeof(double) * s->n * (size_t)s->dim);
     for (size_t i = 0; i < s->nforces; i++)
         s->forces[i].cls->apply(s->forces[i].data, e, f);
+    if (s->nplanes)
+        psys__contact_forces(s, e->x, e->v, f);
 }
 
 /* ---- ODE view ---- */
@@ -288,6 +299,18 @@ static void ode_set_state(void *ctx, const double *y)
     size_t nd = s->n * (size_t)s->dim;
     memcpy(s->x, y, nd * sizeof(double));
     memcpy(s->v, y + nd, nd * sizeof(double));
+}
+
+/* Controlled particles take their prescribed state at the stage time. */
+static void ode_project(void *ctx, double t, double *y)
+{
+    const psys_system *s = ctx;
+    int d = s->dim;
+    double *x = y, *v = y + s->n * (size_t)d;
+    for (size_t k = 0; k < s->nctrl; k++) {
+        size_t i = s->ctrl[k].particle;
+        psys__controller_eval(&s->ctrl[k], d, t, x + i * d, v + i * d);
+    }
 }
 
 static double ode_get_time(void *ctx) { return ((const psys_system *)ctx)->t; }
@@ -324,7 +347,7 @@ psys_ode psys_system_ode(psys_system *s)
     o.get_time = ode_get_time;
     o.set_time = ode_set_time;
     o.derivative = ode_derivative;
-    o.project = NULL;
+    o.project = ode_project;
     return o;
 }
 
@@ -347,7 +370,7 @@ double psys_system_kinetic_energy(const psys_system *s)
     size_t d = (size_t)s->dim;
     double ke = 0;
     for (size_t i = 0; i < s->n; i++) {
-        if (s->flags[i] & PSYS_PARTICLE_FIXED)
+        if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
             continue;
         double v2 = 0;
         for (size_t k = 0; k < d; k++)

@@ -125,6 +125,10 @@ typedef struct psys_system psys_system;
 
 /** Particle flag: fixed in place (anchor); never moved by a solver. */
 #define PSYS_PARTICLE_FIXED 1u
+/** Particle flag: position and velocity prescribed by a controller (notes §5). */
+#define PSYS_PARTICLE_CONTROLLED 2u
+/** Flags of particles that are not integrated (excluded from kinetic and gravity energy). */
+#define PSYS_PARTICLE_NOT_FREE (PSYS_PARTICLE_FIXED | PSYS_PARTICLE_CONTROLLED)
 
 /** Read-only view passed to force callbacks at one derivative evaluation. */
 typedef struct psys_force_eval {
@@ -224,6 +228,87 @@ extern const psys_force_class psys_gravity_class;
 extern const psys_force_class psys_drag_class;
 /** The force class of the spring set. */
 extern const psys_force_class psys_spring_class;
+
+/* ---- Controlled particles (notes §5, ERRATA) ----
+ * Not integrated: at every derivative evaluation their position AND velocity
+ * are set from the controller at the stage time, so damped springs and drag
+ * attached to them see the right velocity. */
+
+/** A controller callback: write the position x and velocity v at time t. */
+typedef void (*psys_controller_fn)(void *ctx, double t, double *x, double *v);
+
+/** Move particle i on a circle: x = c + R(cos(ωt+φ)u + sin(ωt+φ)w); axis
+ *  (3-D, NULL = z) is the circle's normal; u, w a right-handed basis of its plane. */
+psys_status psys_system_control_circle(psys_system *sys, size_t i, const double *center, double radius,
+                                       double omega, double phase, const double *axis);
+/** Oscillate particle i: x = c + A·sin(ωt+φ)·d̂ (direction normalised). */
+psys_status psys_system_control_oscillate(psys_system *sys, size_t i, const double *center,
+                                          const double *direction, double amplitude, double omega, double phase);
+/** Keyframed path: count frames of (1 + dim) numbers [t, x...], t strictly
+ *  increasing; piecewise linear, held constant outside the range. */
+psys_status psys_system_control_keyframes(psys_system *sys, size_t i, const double *frames, size_t count);
+/** Drive particle i from a C callback (such particles cannot be saved to a scene). */
+psys_status psys_system_control_callback(psys_system *sys, size_t i, psys_controller_fn fn, void *ctx);
+/** Remove particle i's controller: it becomes a free particle with its current state. */
+psys_status psys_system_release(psys_system *sys, size_t i);
+/** True if particle i has a controller. */
+bool psys_system_is_controlled(const psys_system *sys, size_t i);
+/** Set every controlled particle's position and velocity for time t (done by
+ *  solvers at each stage; call it after changing the clock by hand). */
+void psys_system_apply_controllers(psys_system *sys, double t);
+
+/* ---- Mouse springs (notes §5) ---- */
+
+/** Add a damped zero-length spring pulling particle i toward a movable target:
+ *  f = -ks (x - p) - kd (v - ṗ). Its force index goes to *handle. */
+psys_status psys_system_add_mouse_spring(psys_system *sys, size_t i, const double *target, double ks,
+                                         double kd, size_t *handle);
+/** Move a mouse spring's target (velocity of the target: NULL = at rest). */
+psys_status psys_system_mouse_set_target(psys_system *sys, size_t handle, const double *target,
+                                         const double *target_velocity);
+/** Scripted drag: the target follows count frames [t, x...] piecewise linearly. */
+psys_status psys_system_mouse_set_path(psys_system *sys, size_t handle, const double *frames, size_t count);
+/** Remove force object i (e.g. release a mouse spring); later indices shift down by one. */
+psys_status psys_system_remove_force(psys_system *sys, size_t i);
+/** The force class of mouse springs. */
+extern const psys_force_class psys_mouse_spring_class;
+
+/* ---- Planes: collisions and contact (notes §7, ERRATA) ---- */
+
+/** How a particle found behind a plane after a step is handled. */
+typedef enum psys_response {
+    PSYS_RESPONSE_ROLLBACK = 0, /**< roll the whole system back to the instant of contact */
+    PSYS_RESPONSE_DISPLACE      /**< project the particle back onto the plane */
+} psys_response;
+
+/** Definition of a plane (a line in 2-D); start from psys_plane_def_default(). */
+typedef struct psys_plane_def {
+    double point[3];      /**< a point on the plane */
+    double normal[3];     /**< points to the legal side; normalised when added */
+    double restitution;   /**< normal velocity times -restitution at a collision, 0..1 */
+    double friction;      /**< linear friction k_f >= 0: f = -k_f (-f·N) v_t in contact */
+    bool stick;           /**< non-slip surface: tangential velocity zeroed in contact */
+    psys_response response; /**< collision response */
+} psys_plane_def;
+
+/** Defaults of DESIGN §3a: restitution 0.5, friction 0, rollback, normal +y. */
+psys_plane_def psys_plane_def_default(void);
+/** Add a plane. */
+psys_status psys_system_add_plane(psys_system *sys, const psys_plane_def *def);
+/** Number of planes. */
+size_t psys_system_plane_count(const psys_system *sys);
+/** Definition of plane k (normal normalised). */
+psys_status psys_system_plane(const psys_system *sys, size_t k, psys_plane_def *def);
+
+/** Resting contact: a particle within this distance of a plane ... */
+#define PSYS_CONTACT_DISTANCE 1e-9
+/** ... whose normal speed is below this is in contact (contact force, friction). */
+#define PSYS_CONTACT_SPEED 1e-3
+
+/** Advance the system by one solver step of at most h_max with collision
+ *  handling against the planes; *h_taken gets the step length. The solver
+ *  must have been created for this system's ODE. */
+psys_status psys_system_advance(psys_system *sys, psys_solver *solver, double h_max, double *h_taken);
 
 /** The ODE view of the system: y = [x (n*dim) | v (n*dim)]. The psys_ode
  *  refers to sys, which must outlive it; adding particles invalidates it. */

@@ -1,0 +1,324 @@
+/* Particle/plane collisions and contact (notes §7 with ERRATA).
+ *
+ * Detection: the sign of (X - P)·N after a step. Response: the normal
+ * velocity is multiplied by -restitution. `rollback` rolls the whole system
+ * back to the instant of contact (found by linear interpolation of the
+ * signed distance, refined by regula falsi on re-integrated partial steps),
+ * applies the response there and finishes the step; `displace` projects the
+ * particle back onto the plane at the end of the step.
+ * Contact: a particle within PSYS_CONTACT_DISTANCE of a plane whose normal
+ * speed is below PSYS_CONTACT_SPEED and that is pushed into it (N·f < 0)
+ * gets the contact force -(N·f)N and linear friction -k_f(-N·f)v_t; on a
+ * `stick` plane the tangential force and velocity are zeroed instead. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+psys_plane_def psys_plane_def_default(void)
+{
+    psys_plane_def d;
+    memset(&d, 0, sizeof d);
+    d.normal[1] = 1;
+    d.restitution = 0.5;
+    d.friction = 0;
+    d.stick = false;
+    d.response = PSYS_RESPONSE_ROLLBACK;
+    return d;
+}
+
+psys_status psys__planes_reserve(psys_system *s)
+{
+    if (!s->nplanes || !s->cap)
+        return PSYS_OK;
+    /* Sized to the capacity so growth is rare; called whenever capacity grows. */
+    double *p = psys__realloc(s->scratch, 2 * s->cap * (size_t)s->dim, sizeof(double));
+    if (!p)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory for collision handling");
+    s->scratch = p;
+    return PSYS_OK;
+}
+
+psys_status psys_system_add_plane(psys_system *s, const psys_plane_def *def)
+{
+    int d = s->dim;
+    double len = 0;
+    for (int k = 0; k < d; k++) {
+        if (!isfinite(def->point[k]) || !isfinite(def->normal[k]))
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "plane point and normal must be finite");
+        len += def->normal[k] * def->normal[k];
+    }
+    len = sqrt(len);
+    if (!(len > 0))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "plane normal must not be zero");
+    if (!(def->restitution >= 0 && def->restitution <= 1))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "plane restitution must be from 0 to 1");
+    if (!(def->friction >= 0) || !isfinite(def->friction))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "plane friction must be finite and >= 0");
+    if (def->response != PSYS_RESPONSE_ROLLBACK && def->response != PSYS_RESPONSE_DISPLACE)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "unknown collision response");
+    if (s->nplanes == s->planes_cap) {
+        size_t cap = s->planes_cap ? 2 * s->planes_cap : 4;
+        psys__plane *p = psys__realloc(s->planes, cap, sizeof *p);
+        if (!p)
+            return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a plane");
+        s->planes = p;
+        s->planes_cap = cap;
+    }
+    psys__plane *pl = &s->planes[s->nplanes];
+    memset(pl, 0, sizeof *pl);
+    for (int k = 0; k < d; k++) {
+        pl->p[k] = def->point[k];
+        pl->n[k] = def->normal[k] / len;
+    }
+    pl->restitution = def->restitution;
+    pl->friction = def->friction;
+    pl->stick = def->stick;
+    pl->response = def->response;
+    s->nplanes++;
+    if (psys__planes_reserve(s) != PSYS_OK) {
+        s->nplanes--;
+        return PSYS_ERR_NOMEM;
+    }
+    return PSYS_OK;
+}
+
+size_t psys_system_plane_count(const psys_system *s) { return s->nplanes; }
+
+psys_status psys_system_plane(const psys_system *s, size_t k, psys_plane_def *def)
+{
+    if (k >= s->nplanes)
+        return PSYS_ERR_INVALID;
+    const psys__plane *pl = &s->planes[k];
+    *def = psys_plane_def_default();
+    memcpy(def->point, pl->p, sizeof pl->p);
+    memcpy(def->normal, pl->n, sizeof pl->n);
+    def->restitution = pl->restitution;
+    def->friction = pl->friction;
+    def->stick = pl->stick;
+    def->response = pl->response;
+    return PSYS_OK;
+}
+
+static inline double dot_d(const double *a, const double *b, int d)
+{
+    double s = 0;
+    for (int k = 0; k < d; k++)
+        s += a[k] * b[k];
+    return s;
+}
+
+static inline double plane_distance(const psys__plane *pl, const double *x, int d)
+{
+    double s = 0;
+    for (int k = 0; k < d; k++)
+        s += (x[k] - pl->p[k]) * pl->n[k];
+    return s;
+}
+
+void psys__contact_forces(const psys_system *s, const double *x, const double *v, double *f)
+{
+    int d = s->dim;
+    for (size_t k = 0; k < s->nplanes; k++) {
+        const psys__plane *pl = &s->planes[k];
+        for (size_t i = 0; i < s->n; i++) {
+            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+                continue;
+            const double *xi = x + i * d, *vi = v + i * d;
+            double *fi = f + i * d;
+            if (plane_distance(pl, xi, d) > PSYS_CONTACT_DISTANCE)
+                continue;
+            double vn = dot_d(vi, pl->n, d);
+            if (fabs(vn) > PSYS_CONTACT_SPEED)
+                continue;
+            double fn = dot_d(fi, pl->n, d);
+            if (fn >= 0)
+                continue; /* pulled away: contact breaks */
+            if (pl->stick) {
+                for (int c = 0; c < d; c++)
+                    fi[c] = 0; /* normal part cancelled, tangential part held by the surface */
+                continue;
+            }
+            for (int c = 0; c < d; c++) {
+                double vt = vi[c] - vn * pl->n[c];
+                fi[c] += -fn * pl->n[c] - pl->friction * (-fn) * vt;
+            }
+        }
+    }
+}
+
+/* One step of exactly h (adaptive solvers may need several). */
+static psys_status step_exact(psys_solver *solver, double h)
+{
+    double left = h;
+    while (left > 0) {
+        double taken;
+        psys_status st = psys_solver_step(solver, left, &taken);
+        if (st != PSYS_OK)
+            return st;
+        if (taken >= left)
+            break;
+        left -= taken;
+    }
+    return PSYS_OK;
+}
+
+static void save_state(const psys_system *s, double *y)
+{
+    size_t nd = s->n * (size_t)s->dim;
+    memcpy(y, s->x, nd * sizeof(double));
+    memcpy(y + nd, s->v, nd * sizeof(double));
+}
+
+static void restore_state(psys_system *s, const double *y, double t)
+{
+    size_t nd = s->n * (size_t)s->dim;
+    memcpy(s->x, y, nd * sizeof(double));
+    memcpy(s->v, y + nd, nd * sizeof(double));
+    s->t = t;
+}
+
+/* Put particle i on plane pl and apply the collision response to an
+ * approaching normal velocity. */
+static void respond(psys_system *s, const psys__plane *pl, size_t i)
+{
+    int d = s->dim;
+    double *x = s->x + i * d, *v = s->v + i * d;
+    double dist = plane_distance(pl, x, d);
+    for (int c = 0; c < d; c++)
+        x[c] -= dist * pl->n[c];
+    double vn = dot_d(v, pl->n, d);
+    if (vn < 0) {
+        double out = -pl->restitution * vn;
+        if (out < PSYS_CONTACT_SPEED)
+            out = 0; /* too slow to bounce: it comes to rest on the plane */
+        for (int c = 0; c < d; c++)
+            v[c] += (out - vn) * pl->n[c];
+    }
+}
+
+/* Earliest crossing of a rollback plane by a particle that was clear of it
+ * at y0: returns the fraction alpha of the step, or 2 if none. */
+static double earliest_crossing(const psys_system *s, const double *y0, size_t *who, size_t *plane)
+{
+    int d = s->dim;
+    double best = 2;
+    for (size_t k = 0; k < s->nplanes; k++) {
+        const psys__plane *pl = &s->planes[k];
+        if (pl->response != PSYS_RESPONSE_ROLLBACK)
+            continue;
+        for (size_t i = 0; i < s->n; i++) {
+            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+                continue;
+            double d1 = plane_distance(pl, s->x + i * d, d);
+            if (d1 >= 0)
+                continue;
+            double d0 = plane_distance(pl, y0 + i * d, d);
+            if (d0 <= PSYS_CONTACT_DISTANCE)
+                continue; /* already touching: displaced at the end instead */
+            double a = d0 / (d0 - d1);
+            if (a < best) {
+                best = a;
+                *who = i;
+                *plane = k;
+            }
+        }
+    }
+    return best;
+}
+
+psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken)
+{
+    double h = 0;
+    if (!s->nplanes) {
+        psys_status st = psys_solver_step(solver, h_max, &h);
+        if (h_taken)
+            *h_taken = h;
+        return st;
+    }
+    int d = s->dim;
+    double *y0 = s->scratch;
+    double t0 = s->t;
+    save_state(s, y0);
+    psys_status st = psys_solver_step(solver, h_max, &h);
+    if (st != PSYS_OK)
+        return st;
+    const double t_end = t0 + h;
+    double left = h;
+    /* Each pass handles the earliest contact event in the rest of the step. */
+    for (int pass = 0; pass < 64 && left > 0; pass++) {
+        size_t who = 0, pk = 0;
+        double alpha = earliest_crossing(s, y0, &who, &pk);
+        if (alpha > 1)
+            break;
+        const psys__plane *pl = &s->planes[pk];
+        /* Regula falsi (Illinois) on the crossing particle's distance, each
+         * trial re-integrating the partial step from y0. */
+        double lo = 0, hi = 1, dlo = plane_distance(pl, y0 + who * d, d);
+        double dhi = plane_distance(pl, s->x + who * d, d), scale = dlo - dhi;
+        int side = 0;
+        for (int it = 0; it < 12; it++) {
+            restore_state(s, y0, t0);
+            if (alpha > 0 && (st = step_exact(solver, alpha * left)) != PSYS_OK)
+                return st;
+            double dc = plane_distance(pl, s->x + who * d, d);
+            if (fabs(dc) <= 1e-12 * scale || hi - lo <= 1e-15)
+                break;
+            if (dc > 0) {
+                lo = alpha;
+                dlo = dc;
+                if (side == 1)
+                    dhi *= 0.5;
+                side = 1;
+            } else {
+                hi = alpha;
+                dhi = dc;
+                if (side == -1)
+                    dlo *= 0.5;
+                side = -1;
+            }
+            alpha = lo + (hi - lo) * dlo / (dlo - dhi);
+        }
+        /* At the contact instant: respond for every particle touching or
+         * behind a rollback plane while approaching it. */
+        for (size_t k = 0; k < s->nplanes; k++) {
+            const psys__plane *q = &s->planes[k];
+            if (q->response != PSYS_RESPONSE_ROLLBACK)
+                continue;
+            for (size_t i = 0; i < s->n; i++)
+                if (!(s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+                    && (i == who && k == pk ? true : plane_distance(q, s->x + i * d, d) < 0))
+                    respond(s, q, i);
+        }
+        t0 += alpha * left;
+        left -= alpha * left;
+        save_state(s, y0);
+        if (left <= 1e-15 * fmax(1.0, fabs(t_end)))
+            break;
+        if ((st = step_exact(solver, left)) != PSYS_OK)
+            return st;
+    }
+    /* Anything still behind a plane (displace planes, particles that were
+     * already touching, leftovers) is projected back; sticky contacts lose
+     * their tangential velocity. */
+    for (size_t k = 0; k < s->nplanes; k++) {
+        const psys__plane *pl = &s->planes[k];
+        for (size_t i = 0; i < s->n; i++) {
+            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+                continue;
+            double dist = plane_distance(pl, s->x + i * d, d);
+            if (dist < 0)
+                respond(s, pl, i);
+            if (pl->stick && dist <= PSYS_CONTACT_DISTANCE) {
+                double *v = s->v + i * d, vn = dot_d(v, pl->n, d);
+                for (int c = 0; c < d; c++)
+                    v[c] = vn * pl->n[c];
+            }
+        }
+    }
+    s->t = t_end;
+    if (h_taken)
+        *h_taken = h;
+    return PSYS_OK;
+}
