@@ -130,7 +130,7 @@ static double angle_of(int d, const double *u, const double *w)
 static void angle_eval(const behavior *b, int d, const double *x, double *C, double *J)
 {
     const double *xa = x, *xb = x + d, *xc = x + 2 * d;
-    double u[3], w[3];
+    double u[3] = {0, 0, 0}, w[3] = {0, 0, 0};
     for (int c = 0; c < d; c++) {
         u[c] = xa[c] - xb[c];
         w[c] = xc[c] - xb[c];
@@ -329,7 +329,7 @@ static psys_status resolve(const psys_behavior_def *def, int dim, const double *
         if (!isfinite(def->angle) || def->angle > PI)
             return psys__fail(err, PSYS_ERR_INVALID, "angle must be finite and at most pi");
         if (def->angle < 0) {
-            double u[3], w[3];
+            double u[3] = {0, 0, 0}, w[3] = {0, 0, 0};
             for (int c = 0; c < dim; c++) {
                 u[c] = x[c] - x[dim + c];
                 w[c] = x[2 * dim + c] - x[dim + c];

@@ -7,5 +7,6 @@ const psys__force_io *const psys__force_types[] = {
     &psys__drag_io,
     &psys__spring_io,
     &psys__mouse_io,
+    &psys__behavior_io,
     NULL,
 };

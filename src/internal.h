@@ -110,6 +110,25 @@ psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double k
 size_t psys__springs_count(const void *set);
 /** Read spring k. */
 void psys__springs_get(const void *set, size_t k, size_t *a, size_t *b, double *ks, double *kd, double *rest);
+/** Give spring k a muscle (amplitude 0 removes it); arguments already validated. */
+psys_status psys__springs_set_muscle(void *set, size_t k, double amplitude, double omega, double phase);
+/** True if spring k has a muscle; its parameters into the out pointers (may be NULL). */
+bool psys__springs_muscle(const void *set, size_t k, double *amplitude, double *omega, double *phase);
+/** Rest length of spring k at time t (muscles included). */
+double psys__springs_rest_at(const void *set, size_t k, double t);
+/** Drop springs n.. (and their muscles); never allocates. */
+void psys__springs_truncate(void *set, size_t n);
+
+/* ---- structures (structures.c) ---- */
+/** Add a particle without searching for a duplicate id: the caller has made
+ *  sure id (may be NULL) is unique. Otherwise as psys_system_add_particle. */
+psys_status psys__system_add_particle_unique(psys_system *s, const double *x, const double *v, double mass,
+                                             const char *id, size_t *index);
+/** Grow the particle arrays to hold at least want particles. */
+psys_status psys__system_reserve(psys_system *s, size_t want);
+/** Remove particles n.. (undoing a partly built structure); they must not be
+ *  referred to by forces, controllers or anything else yet. */
+void psys__system_truncate(psys_system *s, size_t n);
 
 /* ---- scene-format handlers per force type (one per force file) ---- */
 typedef struct psys__parse psys__parse;
@@ -128,6 +147,7 @@ extern const psys__force_io psys__gravity_io;
 extern const psys__force_io psys__drag_io;
 extern const psys__force_io psys__spring_io;
 extern const psys__force_io psys__mouse_io;
+extern const psys__force_io psys__behavior_io;
 
 /** All force types known to scenes, NULL-terminated. */
 extern const psys__force_io *const psys__force_types[];
@@ -152,6 +172,8 @@ psys_status psys__parse_vec(psys__parse *p, const struct cJSON *obj, const char 
                             const double *def, double *out);
 /** Read a particle reference (id string or index) at key. */
 psys_status psys__parse_ref(psys__parse *p, const struct cJSON *obj, const char *path, const char *key, size_t *out);
+/** Read a particle reference from item itself (an array element); path names it. */
+psys_status psys__parse_ref_item(psys__parse *p, const struct cJSON *item, const char *path, size_t *out);
 /** Parse a JSON array of frames [[t, x...], ...] (t strictly increasing) at
  *  item; *frames is malloc'ed count × (1 + dim). */
 psys_status psys__parse_frames(psys__parse *p, const struct cJSON *item, const char *path, double **frames,
@@ -166,5 +188,11 @@ struct cJSON *psys__num_json(double x);
 struct cJSON *psys__add_num(struct cJSON *obj, const char *key, double x);
 /** A JSON array of dim numbers (exact). */
 struct cJSON *psys__vec_json(const double *v, int dim);
+/** Read the optional "muscle" object of obj into out = {amplitude, omega,
+ *  phase, phase_step} (phase_step only accepted when with_step). */
+psys_status psys__parse_muscle(psys__parse *p, const struct cJSON *obj, const char *path, bool with_step,
+                               bool *present, double out[4]);
+/** Parse one element of the scene's "structures" array (structures.c). */
+psys_status psys__parse_structure(psys__parse *p, const struct cJSON *obj, const char *path);
 
 #endif

@@ -20,6 +20,11 @@ psys_system *psys__parse_system(psys__parse *p) { return p->sys; }
 /* A short printed form of item for "(got ...)". */
 static void describe(const cJSON *item, char *out, size_t cap)
 {
+    if (cJSON_IsNumber(item) && !isfinite(item->valuedouble)) {
+        /* cJSON would print a number that overflowed (1e999) as null. */
+        snprintf(out, cap, "%s", isnan(item->valuedouble) ? "nan" : item->valuedouble > 0 ? "inf" : "-inf");
+        return;
+    }
     char *txt = item ? cJSON_PrintUnformatted(item) : NULL;
     if (!txt) {
         snprintf(out, cap, "%s", item ? "?" : "");
@@ -155,20 +160,25 @@ psys_status psys__parse_ref(psys__parse *p, const cJSON *obj, const char *path, 
     const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
     if (!it)
         return psys__parse_fail(p, kp, NULL, "required key missing");
+    return psys__parse_ref_item(p, it, kp, out);
+}
+
+psys_status psys__parse_ref_item(psys__parse *p, const cJSON *it, const char *path, size_t *out)
+{
     if (cJSON_IsString(it)) {
         if (psys_system_find(p->sys, it->valuestring, out) != PSYS_OK)
-            return psys__parse_fail(p, kp, it, "unknown particle id");
+            return psys__parse_fail(p, path, it, "unknown particle id");
         return PSYS_OK;
     }
     if (cJSON_IsNumber(it)) {
         double v = it->valuedouble;
         if (v != floor(v) || v < 0 || v >= (double)p->sys->n)
-            return psys__parse_fail(p, kp, it, "particle index out of range (there are %zu particles)",
+            return psys__parse_fail(p, path, it, "particle index out of range (there are %zu particles)",
                                     p->sys->n);
         *out = (size_t)v;
         return PSYS_OK;
     }
-    return psys__parse_fail(p, kp, it, "must be a particle id (string) or index (integer)");
+    return psys__parse_fail(p, path, it, "must be a particle id (string) or index (integer)");
 }
 
 static psys_status parse_bool(psys__parse *p, const cJSON *obj, const char *path, const char *key, bool *out)
@@ -383,11 +393,15 @@ static psys_status parse_force(psys__parse *p, const cJSON *obj, const char *pat
     for (const psys__force_io *const *io = psys__force_types; *io; io++)
         if (strcmp((*io)->type, type->valuestring) == 0)
             return (*io)->parse(p, obj, path);
-    static const char *const planned[] = {"behavior", "pair", NULL};
+    static const char *const planned[] = {"pair", NULL};
     for (const char *const *t = planned; *t; t++)
         if (strcmp(*t, type->valuestring) == 0)
             return unsupported(p, kp, type);
-    return psys__parse_fail(p, kp, type, "unknown force type (known: gravity, drag, spring)");
+    char known[256] = "";
+    for (const psys__force_io *const *io = psys__force_types; *io; io++)
+        snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", io == psys__force_types ? "" : ", ",
+                 (*io)->type);
+    return psys__parse_fail(p, kp, type, "unknown force type (known: %s)", known);
 }
 
 /* Parse a JSON array at key with one callback per element. */
@@ -547,14 +561,17 @@ static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *sce
     if ((st = psys__parse_number(p, root, "", "duration", true, set->duration, 0, false, &set->duration)) != PSYS_OK)
         return st;
     set->use_steps = has_steps;
-    for (const char *const *k = (const char *const[]){"structures", "box", NULL}; *k; k++) {
+    for (const char *const *k = (const char *const[]){"box", NULL}; *k; k++) {
         const cJSON *it = cJSON_GetObjectItemCaseSensitive(root, *k);
         if (it)
             return unsupported(p, *k, it);
     }
     if (!(p->sys = scene->sys = psys_system_create((int)dim, p->err)))
         return p->err->code;
+    /* structures after the explicit particles and before forces, so that
+     * forces can refer to structure particles by id */
     if ((st = parse_list(p, root, "particles", parse_particle)) != PSYS_OK
+        || (st = parse_list(p, root, "structures", psys__parse_structure)) != PSYS_OK
         || (st = parse_list(p, root, "forces", parse_force)) != PSYS_OK
         || (st = parse_list(p, root, "planes", parse_plane)) != PSYS_OK
         || (st = parse_output(p, root, set)) != PSYS_OK
@@ -594,6 +611,28 @@ static void locate(const char *text, size_t off, char *out, size_t cap)
     snprintf(out, cap, "line %zu, column %zu", line, col);
 }
 
+static bool is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
+
+/* Where a failed cJSON parse really went wrong. cJSON reports an object key
+ * that is not a string one character late, and an input that ends too early
+ * at its last character rather than at the end. */
+static size_t error_offset(const char *text, size_t len, size_t off)
+{
+    if (off >= len)
+        return len;
+    if (off > 0 && !is_space(text[off - 1]) && text[off - 1] != ',' && text[off - 1] != '{'
+        && text[off - 1] != '"') {
+        size_t q = off - 1;
+        while (q > 0 && is_space(text[q - 1]))
+            q--;
+        if (q > 0 && (text[q - 1] == ',' || text[q - 1] == '{'))
+            return off - 1;
+    }
+    if (off == len - 1 && strchr("\"0123456789el", text[off]))
+        return len;
+    return off;
+}
+
 psys_scene *psys_scene_load_string(const char *text, size_t len, psys_error *err)
 {
     psys_error local;
@@ -622,7 +661,7 @@ psys_scene *psys_scene_load_string(const char *text, size_t len, psys_error *err
         if (!root || off < len) {
             char where[64], got[40];
             if (!root)
-                off = cJSON_GetErrorPtr() ? (size_t)(cJSON_GetErrorPtr() - text) : len;
+                off = error_offset(text, len, off);
             if (off > len)
                 off = len;
             locate(text, off, where, sizeof where);
@@ -630,8 +669,10 @@ psys_scene *psys_scene_load_string(const char *text, size_t len, psys_error *err
             while (n < 20 && off + n < len && text[off + n] != '\n' && text[off + n] != '\r')
                 n++;
             snprintf(got, sizeof got, "%.*s", (int)n, text + off);
-            if (n == 0)
+            if (off >= len)
                 psys__fail(err, PSYS_ERR_INVALID, "%s: malformed JSON (got end of file)", where);
+            else if (n == 0)
+                psys__fail(err, PSYS_ERR_INVALID, "%s: malformed JSON (got end of line)", where);
             else
                 psys__fail(err, PSYS_ERR_INVALID, "%s: malformed JSON (got \"%s\")", where, got);
             cJSON_Delete(root);

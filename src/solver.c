@@ -93,6 +93,8 @@ psys_status psys_solver_set_next_step(psys_solver *s, double h)
 
 psys_status psys_solver_step(psys_solver *s, double h_max, double *h_taken)
 {
+    if (h_taken)
+        *h_taken = 0.0;
     if (!(h_max > 0) || !isfinite(h_max))
         return psys__fail(&s->err, PSYS_ERR_INVALID, "step size must be a finite number > 0 (got %g)", h_max);
     double h = 0;

@@ -4,7 +4,7 @@
 
 #include <string.h>
 
-enum { Y0, YDOT, Y1 };
+enum { Y0, YDOT, Y1, YPRED };
 
 /* v1 = v0 + h a(t, x0, v0);  x1 = x0 + h v1 */
 static psys_status symplectic_euler_step(psys_solver *s, double h, double *h_taken)
@@ -26,12 +26,14 @@ static psys_status symplectic_euler_step(psys_solver *s, double h, double *h_tak
     return psys__solver_commit(s, y1, t + h);
 }
 
-/* v½ = v0 + h/2 a(x0, v0);  x1 = x0 + h v½;  v1 = v½ + h/2 a(x1, v½).
- * Velocity-dependent forces see v½ at the second evaluation. */
+/* v½ = v0 + h/2 a(x0, v0);  x1 = x0 + h v½;  v1 = v½ + h/2 a(x1, ṽ1).
+ * The second evaluation sees the predicted end velocity ṽ1 = v0 + h a0, which
+ * keeps second order when forces depend on velocity (damping, drag); for
+ * velocity-independent forces this is exactly velocity Verlet. */
 static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
 {
     size_t np = s->ode.npos;
-    double *y0 = s->buf[Y0], *ydot = s->buf[YDOT], *y1 = s->buf[Y1];
+    double *y0 = s->buf[Y0], *ydot = s->buf[YDOT], *y1 = s->buf[Y1], *ypred = s->buf[YPRED];
     double t = s->ode.get_time(s->ode.ctx), hh = 0.5 * h;
     s->ode.get_state(s->ode.ctx, y0);
     psys_status st = psys__solver_eval(s, t, y0, ydot);
@@ -41,8 +43,10 @@ static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
         double vh = y0[np + i] + hh * ydot[np + i];
         y1[np + i] = vh;
         y1[i] = y0[i] + h * vh;
+        ypred[i] = y1[i];
+        ypred[np + i] = y0[np + i] + h * ydot[np + i];
     }
-    if ((st = psys__solver_eval(s, t + h, y1, ydot)) != PSYS_OK)
+    if ((st = psys__solver_eval(s, t + h, ypred, ydot)) != PSYS_OK)
         return st;
     for (size_t i = 0; i < np; i++)
         y1[np + i] += hh * ydot[np + i];
@@ -52,4 +56,4 @@ static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
 
 const psys__solver_class psys__symplectic_euler = {"symplectic-euler", 1, false, true, 3, NULL,
                                                    symplectic_euler_step};
-const psys__solver_class psys__verlet = {"verlet", 2, false, true, 3, NULL, verlet_step};
+const psys__solver_class psys__verlet = {"verlet", 2, false, true, 4, NULL, verlet_step};

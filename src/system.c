@@ -103,6 +103,29 @@ psys_status psys_system_add_particle(psys_system *s, const double *x, const doub
         if (psys_system_find(s, id, &dup) == PSYS_OK)
             return psys__fail(&s->err, PSYS_ERR_INVALID, "duplicate particle id \"%s\"", id);
     }
+    return psys__system_add_particle_unique(s, x, v, mass, id, index);
+}
+
+psys_status psys__system_reserve(psys_system *s, size_t want) { return reserve(s, want); }
+
+void psys__system_truncate(psys_system *s, size_t n)
+{
+    for (size_t i = n; i < s->n; i++) {
+        free(s->ids[i]);
+        s->ids[i] = NULL;
+    }
+    if (n < s->n)
+        s->n = n;
+}
+
+psys_status psys__system_add_particle_unique(psys_system *s, const double *x, const double *v, double mass,
+                                             const char *id, size_t *index)
+{
+    int d = s->dim;
+    if (!x || !all_finite(x, d) || (v && !all_finite(v, d)))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle position and velocity must be finite");
+    if (!(mass > 0) || !isfinite(mass))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle mass must be a finite number > 0 (got %g)", mass);
     if (reserve(s, s->n + 1) != PSYS_OK)
         return PSYS_ERR_NOMEM;
     char *copy = NULL;
@@ -329,8 +352,10 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     double *a = ydot + nd;
     for (size_t i = 0; i < s->n; i++) {
         double w = s->inv_mass[i];
+        /* Not-free particles get exactly 0, even when their force overflowed
+         * (inf·0 would be NaN and blame an anchor for a free particle's blow-up). */
         for (size_t k = 0; k < d; k++)
-            a[i * d + k] = s->f[i * d + k] * w;
+            a[i * d + k] = w != 0 ? s->f[i * d + k] * w : 0.0;
     }
     return PSYS_OK;
 }

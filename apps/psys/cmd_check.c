@@ -42,6 +42,14 @@ int cmd_check(int argc, char **argv)
         cli_error("%s: %s", name, err.message);
         return EXIT_BAD_INPUT;
     }
+    /* Open the --save file first: a path that cannot be written is bad usage,
+     * reported before anything is printed. */
+    outfile saved;
+    memset(&saved, 0, sizeof saved);
+    if (save && strcmp(save, "-") != 0 && outfile_open(&saved, save, "--save") != 0) {
+        psys_scene_destroy(scene);
+        return EXIT_BAD_INPUT;
+    }
     psys_system *sys = psys_scene_system(scene);
     const psys_settings *set = psys_scene_settings(scene);
     size_t fixed = 0;
@@ -79,19 +87,15 @@ int cmd_check(int argc, char **argv)
         char *text = psys_scene_to_string(scene, rs->present ? rs : NULL, &err);
         if (!text) {
             cli_error("--save %s: %s", save, err.message);
+            outfile_abort(&saved);
             status = EXIT_RUN_FAILED;
         } else if (strcmp(save, "-") == 0) {
             puts(text);
         } else {
-            outfile o;
-            if (outfile_open(&o, save, "--save") != 0) {
-                status = EXIT_BAD_INPUT;
-            } else {
-                fputs(text, o.fp);
-                fputc('\n', o.fp);
-                if (outfile_commit(&o) != 0)
-                    status = EXIT_RUN_FAILED;
-            }
+            fputs(text, saved.fp);
+            fputc('\n', saved.fp);
+            if (outfile_commit(&saved) != 0)
+                status = EXIT_RUN_FAILED;
         }
         free(text);
     }

@@ -220,25 +220,26 @@ static int write_frame(outputs *out, const psys_system *sys, long long step)
     return 0;
 }
 
-static int write_checkpoint(const char *path, const psys_scene *scene, const psys_run *run)
+/* The checkpoint file was opened (as a temporary) before the run started,
+ * so an unwritable path is a start-up error, not a surprise at the end. */
+static int write_checkpoint(outfile *o, const psys_scene *scene, const psys_run *run)
 {
     psys_error err;
     psys_resume_state rs = psys_run_resume_state(run);
     char *text = psys_scene_to_string(scene, &rs, &err);
     if (!text) {
-        cli_error("--checkpoint %s: %s", path, err.message);
+        cli_error("--checkpoint %s: %s", o->path, err.message);
+        outfile_abort(o);
         return -1;
     }
-    outfile o;
-    int rc = outfile_open(&o, path, "--checkpoint");
-    if (rc == 0) {
-        fputs(text, o.fp);
-        fputc('\n', o.fp);
-        rc = outfile_commit(&o);
-    }
+    fputs(text, o->fp);
+    fputc('\n', o->fp);
     free(text);
-    return rc;
+    return outfile_commit(o);
 }
+
+/* Two outputs written to one file would silently clobber each other. */
+static int same_path(const char *a, const char *b) { return a && b && a[0] && strcmp(a, b) == 0; }
 
 static const char *display_name(const char *path) { return strcmp(path, "-") == 0 ? "<stdin>" : path; }
 
@@ -283,11 +284,22 @@ int cmd_run(int argc, char **argv)
     }
     psys_system *sys = psys_scene_system(scene);
     outputs out;
+    outfile ck;
     memset(&out, 0, sizeof out);
-    if ((set->trajectory[0] && outfile_open(&out.traj, set->trajectory, "--out") != 0)
-        || (set->energy[0] && outfile_open(&out.energy, set->energy, "--energy") != 0)) {
+    memset(&ck, 0, sizeof ck);
+    const char *traj_label = o.out ? "--out" : "output.trajectory";
+    const char *energy_label = o.energy ? "--energy" : "output.energy";
+    int clash = same_path(set->trajectory, set->energy) || same_path(set->trajectory, o.checkpoint)
+                || same_path(set->energy, o.checkpoint);
+    if (clash)
+        cli_error("%s: the trajectory, energy and checkpoint files must be different files",
+                  same_path(set->energy, o.checkpoint) ? set->energy : set->trajectory);
+    if (clash || (set->trajectory[0] && outfile_open(&out.traj, set->trajectory, traj_label) != 0)
+        || (set->energy[0] && outfile_open(&out.energy, set->energy, energy_label) != 0)
+        || (o.checkpoint && outfile_open(&ck, o.checkpoint, "--checkpoint") != 0)) {
         outfile_abort(&out.traj);
         outfile_abort(&out.energy);
+        outfile_abort(&ck);
         psys_run_destroy(run);
         psys_scene_destroy(scene);
         return EXIT_BAD_INPUT;
@@ -329,7 +341,7 @@ int cmd_run(int argc, char **argv)
     int rc = outfile_commit(&out.traj);
     rc |= outfile_commit(&out.energy);
     if (o.checkpoint)
-        rc |= write_checkpoint(o.checkpoint, scene, run);
+        rc |= write_checkpoint(&ck, scene, run);
     if ((rc || io_failed) && status == EXIT_OK)
         status = EXIT_RUN_FAILED;
     if (stop_signal) {

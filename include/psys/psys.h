@@ -229,6 +229,97 @@ extern const psys_force_class psys_drag_class;
 /** The force class of the spring set. */
 extern const psys_force_class psys_spring_class;
 
+/* ------------------------------------------------------------------ */
+/* Behaviour functions ("energy" forces, notes §6 eq. 2, ERRATA)       */
+/* ------------------------------------------------------------------ */
+/* A behaviour function C(x_1..x_k) ∈ R^m vanishes when its particles are
+ * "happy". It becomes the force f_i = -(∂C/∂x_i)ᵀ (k_s C + k_d Ċ) with
+ * Ċ = Σ_i (∂C/∂x_i) v_i, and the energy ½ k_s C·C. Each behaviour added is
+ * one force object; built-in functions and user callbacks go through the
+ * same machinery. Its Jacobian (for implicit solvers) is the Gauss–Newton
+ * approximation ∂f/∂x ≈ -k_s JᵀJ, ∂f/∂v = -k_d JᵀJ (J = ∂C/∂x): it ignores
+ * the second derivatives of C, so it is exact only for affine C (coincide,
+ * point-on-plane) and drops the k_s C·∂²C/∂x² term otherwise. */
+
+/** Most particles one behaviour function may depend on (k). */
+#define PSYS_BEHAVIOR_MAX_PARTICLES 8
+/** Most components one behaviour function may have (m). */
+#define PSYS_BEHAVIOR_MAX_COMPONENTS 9
+
+/** Which function a behaviour uses. */
+typedef enum psys_behavior_function {
+    PSYS_BEHAVIOR_USER = 0,        /**< user callback (eval, ctx, ncomponents) */
+    PSYS_BEHAVIOR_COINCIDE,        /**< C = x1 - x2 (dim components), 2 particles */
+    PSYS_BEHAVIOR_DISTANCE,        /**< C = |x1 - x2| - r, 2 particles */
+    PSYS_BEHAVIOR_POINT_ON_PLANE,  /**< C = (x - point)·n̂, 1 particle */
+    PSYS_BEHAVIOR_POINT_ON_SPHERE, /**< C = |x - center| - radius (circle in 2-D), 1 particle */
+    PSYS_BEHAVIOR_ANGLE            /**< C = θ - angle, θ ∈ [0, π] between a-b and c-b, 3 particles a, b, c */
+} psys_behavior_function;
+
+/** A behaviour function: from x (k*dim positions, particle-major) write C (m
+ *  values) and, when J is not NULL, J = ∂C/∂x (m × k*dim, row-major). J is
+ *  NULL when only C is wanted (energy, finite differences). */
+typedef void (*psys_behavior_eval_fn)(void *ctx, int dim, const double *x, double *C, double *J);
+
+/** Definition of a behaviour force (Box2D style: start from
+ *  psys_behavior_def_default() and set the fields that matter). Where a
+ *  built-in's gradient direction is undefined (distance with coincident
+ *  particles, point-on-sphere exactly at the center, angle with a zero arm or
+ *  at exactly θ = 0 or π) its J is zero: no force, never NaN (the energy is
+ *  still ½ k_s C·C). Near θ = 0 or π the angle's gradient keeps its size
+ *  (1/arm length) but its direction is ill-conditioned. */
+typedef struct psys_behavior_def {
+    psys_behavior_function function; /**< built-in, or PSYS_BEHAVIOR_USER (default) */
+    int nparticles;                  /**< k: 1..PSYS_BEHAVIOR_MAX_PARTICLES; built-ins need 2, 2, 1, 1, 3 */
+    size_t particles[PSYS_BEHAVIOR_MAX_PARTICLES]; /**< particle indices, all different */
+    double ks;                       /**< stiffness k_s >= 0 (default 1) */
+    double kd;                       /**< damping k_d >= 0 (default 0) */
+    int ncomponents;                 /**< user: m, 1..PSYS_BEHAVIOR_MAX_COMPONENTS (built-ins: ignored) */
+    psys_behavior_eval_fn eval;      /**< user: the function (built-ins: ignored) */
+    void *ctx;                       /**< user: passed to eval; must outlive the system */
+    bool fd_jacobian;                /**< user: J by central differences of C (eval gets J = NULL) */
+    double fd_step;                  /**< user: difference step h·max(1, |x_q|) (default 1e-6) */
+    double r;                        /**< distance: target distance; < 0 (default) = the current one */
+    double point[3];                 /**< point-on-plane: a point of the plane (line in 2-D) */
+    double normal[3];                /**< point-on-plane: its normal, nonzero, normalised when used */
+    double center[3];                /**< point-on-sphere: the center */
+    double radius;                   /**< point-on-sphere: the radius >= 0 */
+    double angle;                    /**< angle: target angle in [0, π]; < 0 (default) = the current one */
+} psys_behavior_def;
+
+/** A definition with the defaults documented on psys_behavior_def. */
+psys_behavior_def psys_behavior_def_default(void);
+/** Add a behaviour force (one force object); defaults (r, angle) are resolved
+ *  from the particles' current positions. */
+psys_status psys_system_add_behavior(psys_system *sys, const psys_behavior_def *def);
+/** Definition of force object i if it is a behaviour (defaults resolved, the
+ *  normal as given); PSYS_ERR_INVALID otherwise. */
+psys_status psys_system_behavior(const psys_system *sys, size_t i, psys_behavior_def *def);
+/** Scene name of a built-in function ("distance", ...); NULL for PSYS_BEHAVIOR_USER. */
+const char *psys_behavior_function_name(psys_behavior_function f);
+/** The built-in function named name (PSYS_ERR_INVALID if there is none). */
+psys_status psys_behavior_function_from_name(const char *name, psys_behavior_function *f);
+/** Number of components m of def in dimension dim (0 if def is invalid). */
+int psys_behavior_components(const psys_behavior_def *def, int dim);
+/** Evaluate def at positions x (nparticles*dim) into C (m) and, if J is not
+ *  NULL, J (m × nparticles*dim; by differences when fd_jacobian). Defaults
+ *  (r, angle) are resolved from x. PSYS_ERR_INVALID (err says why) for a bad def. */
+psys_status psys_behavior_eval(const psys_behavior_def *def, int dim, const double *x, double *C,
+                               double *J, psys_error *err);
+/** Compare def's J at x (eval is asked for J even when fd_jacobian is set)
+ *  with central differences of C (step eps, absolute; <= 0 means 1e-6):
+ *  *worst_abs_error gets the largest |J - J_fd| (infinity if not finite),
+ *  *row (component) and *col (particle slot*dim + axis) where it occurs; out
+ *  pointers may be NULL. PSYS_ERR_INVALID for a bad def. */
+psys_status psys_behavior_check_jacobian(const psys_behavior_def *def, int dim, const double *x, double eps,
+                                         double *worst_abs_error, int *row, int *col);
+
+/** The force class of behaviours with built-in functions (scenes can hold them). */
+extern const psys_force_class psys_behavior_class;
+/** The force class of behaviours with user callbacks (no scene form). */
+extern const psys_force_class psys_behavior_user_class;
+/* ---- end of behaviour functions ---- */
+
 /* ---- Controlled particles (notes §5, ERRATA) ----
  * Not integrated: at every derivative evaluation their position AND velocity
  * are set from the controller at the stage time, so damped springs and drag
@@ -327,6 +418,124 @@ size_t psys_system_particle_of_component(const psys_system *sys, size_t k);
 psys_status psys_system_dense_jacobian(psys_system *sys, double *dfdx, double *dfdv);
 /** Same from central finite differences of the forces, step eps. */
 psys_status psys_system_fd_jacobian(psys_system *sys, double eps, double *dfdx, double *dfdv);
+
+/* ------------------------------------------------------------------ */
+/* Structures (notes §5, DESIGN §3a) and muscle springs                */
+/* Builders add particles and springs (into the system's spring set)   */
+/* in a documented order (docs/scene-format.md, "Structures"): grid    */
+/* particle (i,j,k) is first + i + nx·(j + ny·k); with an id, particles */
+/* are named "id[i]", "id[i,j]", "id[i,j,k]" (wheel hub "id[hub]").    */
+/* Every spring starts at rest (rest = initial distance). Start each   */
+/* definition from its _default() so new fields never break callers.   */
+/* ------------------------------------------------------------------ */
+
+/** Most particles a system may hold after adding a structure (50 million); larger requests are refused before allocating. */
+#define PSYS_MAX_PARTICLES 50000000u
+
+/** Chain / rope: count particles evenly from `from` to `to` (both exact), a spring between neighbours. */
+typedef struct psys_chain_def {
+    const char *id;            /**< structure id: particle i is "id[i]"; NULL = no ids */
+    double from[3];            /**< position of particle 0 (dim numbers used) */
+    double to[3];              /**< position of particle count-1; must differ from `from` */
+    size_t count;              /**< number of particles, >= 2 */
+    double mass;               /**< mass of each particle, > 0 */
+    double ks;                 /**< spring stiffness, >= 0 */
+    double kd;                 /**< spring damping, >= 0 */
+    const size_t *pin;         /**< indices of particles made fixed (pin_count of them) */
+    size_t pin_count;          /**< length of pin */
+    double muscle_amplitude;   /**< > 0: segment s is a muscle with phase muscle_phase + s·muscle_phase_step */
+    double muscle_omega;       /**< muscle angular frequency (rad/s) */
+    double muscle_phase;       /**< muscle phase of segment 0 (rad) */
+    double muscle_phase_step;  /**< phase added per segment: a travelling wave (rad) */
+} psys_chain_def;
+
+/** Cloth sheet: nx×ny particles at origin + (i·spacing)·a1 + (j·spacing)·a2. */
+typedef struct psys_cloth_def {
+    const char *id;            /**< structure id: particle (i,j) is "id[i,j]"; NULL = no ids */
+    double origin[3];          /**< position of particle (0,0) */
+    size_t nx, ny;             /**< grid size, each >= 2 */
+    double spacing;            /**< grid spacing, > 0 */
+    double mass;               /**< mass of each particle, > 0 */
+    double ks, kd;             /**< stiffness and damping of structural springs, >= 0 */
+    bool shear;                /**< both diagonals of every cell (default true) */
+    bool bend;                 /**< springs (i,j)-(i+2,j) and (i,j)-(i,j+2) (default true) */
+    double shear_ks, shear_kd; /**< shear spring constants; < 0 (default) = ks, kd */
+    double bend_ks, bend_kd;   /**< bend spring constants; < 0 (default) = ks, kd */
+    double axes[2][3];         /**< a1, a2: non-zero, not parallel (default e_x, e_y) */
+    const size_t *pin;         /**< pin_count grid coordinates made fixed, flattened: i0, j0, i1, j1, ... */
+    size_t pin_count;          /**< number of pinned particles */
+} psys_cloth_def;
+
+/** Beam: a planar nx×ny lattice with structural springs and both diagonals of every cell (rigid in its plane). */
+typedef struct psys_beam_def {
+    const char *id;            /**< structure id: particle (i,j) is "id[i,j]"; NULL = no ids */
+    double origin[3];          /**< position of particle (0,0) */
+    size_t nx, ny;             /**< grid size, each >= 2 */
+    double spacing;            /**< grid spacing, > 0 */
+    double mass;               /**< mass of each particle, > 0 */
+    double ks, kd;             /**< stiffness and damping of every spring, >= 0 */
+    double axes[2][3];         /**< a1, a2: non-zero, not parallel (default e_x, e_y) */
+    const size_t *pin;         /**< pin_count grid coordinates made fixed, flattened: i0, j0, ... */
+    size_t pin_count;          /**< number of pinned particles */
+} psys_beam_def;
+
+/** Block (3-D only): nx×ny×nz lattice with edges, face diagonals and body diagonals (holds its shape). */
+typedef struct psys_block_def {
+    const char *id;            /**< structure id: particle (i,j,k) is "id[i,j,k]"; NULL = no ids */
+    double origin[3];          /**< position of particle (0,0,0) */
+    size_t nx, ny, nz;         /**< grid size, each >= 2 */
+    double spacing;            /**< grid spacing, > 0 */
+    double mass;               /**< mass of each particle, > 0 */
+    double ks, kd;             /**< stiffness and damping of every spring, >= 0 */
+    double axes[3][3];         /**< a1, a2, a3: linearly independent (default e_x, e_y, e_z) */
+    const size_t *pin;         /**< pin_count grid coordinates made fixed, flattened: i0, j0, k0, ... */
+    size_t pin_count;          /**< number of pinned particles */
+} psys_block_def;
+
+/** Wheel: count rim particles on a circle, rim springs, spokes to a hub particle, and cross-bracing. */
+typedef struct psys_wheel_def {
+    const char *id;            /**< structure id: rim particle i is "id[i]", the hub "id[hub]"; NULL = no ids */
+    double center[3];          /**< centre of the rim (and the hub's position) */
+    double radius;             /**< rim radius, > 0 */
+    size_t count;              /**< number of rim particles, >= 3 */
+    double mass;               /**< mass of each particle (rim and hub), > 0 */
+    double ks, kd;             /**< stiffness and damping of every spring, >= 0 */
+    double axis[3];            /**< 3-D: normal of the wheel's plane (default e_z); ignored in 2-D */
+    bool hub;                  /**< add the hub particle and spokes (default true) */
+    bool brace;                /**< cross-bracing springs (i, i+2) along the rim (default true) */
+    const size_t *pin;         /**< rim indices made fixed (pin_count of them) */
+    size_t pin_count;          /**< length of pin */
+    bool pin_hub;              /**< make the hub fixed (an axle) */
+} psys_wheel_def;
+
+/** Chain defaults: from 0 to e_x, count 2, mass 1, ks 1, kd 0, no pins, no muscle. */
+psys_chain_def psys_chain_def_default(void);
+/** Cloth defaults: 2×2, spacing 1, mass 1, ks 1, kd 0, shear and bend on (same constants), axes e_x, e_y. */
+psys_cloth_def psys_cloth_def_default(void);
+/** Beam defaults: 2×2, spacing 1, mass 1, ks 1, kd 0, axes e_x, e_y. */
+psys_beam_def psys_beam_def_default(void);
+/** Block defaults: 2×2×2, spacing 1, mass 1, ks 1, kd 0, axes e_x, e_y, e_z. */
+psys_block_def psys_block_def_default(void);
+/** Wheel defaults: radius 1, count 8, mass 1, ks 1, kd 0, axis e_z, hub and brace on. */
+psys_wheel_def psys_wheel_def_default(void);
+
+/** Add a chain; its first particle's index goes to *first_index (may be NULL). Nothing is added on failure. */
+psys_status psys_system_add_chain(psys_system *sys, const psys_chain_def *def, size_t *first_index);
+/** Add a cloth sheet (see psys_cloth_def); nothing is added on failure. */
+psys_status psys_system_add_cloth(psys_system *sys, const psys_cloth_def *def, size_t *first_index);
+/** Add a beam (see psys_beam_def); nothing is added on failure. */
+psys_status psys_system_add_beam(psys_system *sys, const psys_beam_def *def, size_t *first_index);
+/** Add a block (3-D systems only); nothing is added on failure. */
+psys_status psys_system_add_block(psys_system *sys, const psys_block_def *def, size_t *first_index);
+/** Add a wheel (rim particles first, then the hub); nothing is added on failure. */
+psys_status psys_system_add_wheel(psys_system *sys, const psys_wheel_def *def, size_t *first_index);
+
+/** Make spring k a muscle: rest length r(t) = rest·(1 + amplitude·sin(omega·t + phase)), amplitude 0..1 (0 removes it). */
+psys_status psys_system_set_spring_muscle(psys_system *sys, size_t k, double amplitude, double omega, double phase);
+/** True if spring k is a muscle; its parameters go to the out pointers (each may be NULL). */
+bool psys_system_spring_muscle(const psys_system *sys, size_t k, double *amplitude, double *omega, double *phase);
+/** Rest length of spring k at time t (the muscle's r(t), else its fixed rest length; NaN if no spring k). */
+double psys_system_spring_rest_length(const psys_system *sys, size_t k, double t);
 
 /* ------------------------------------------------------------------ */
 /* Scenes (JSON, DESIGN §2)                                            */

@@ -1,0 +1,1 @@
+psys_c_test(test_forces spring_force_eq1 spring_damping_along_l spring_rest_length spring_invalid_arguments spring_zero_length gravity_and_drag custom_force_class jacobian_2d jacobian_3d)

@@ -1,0 +1,1 @@
+psys_c_test(test_physics projectile_2d projectile_3d drag_decay drag_gravity_terminal damped_oscillator_2d damped_oscillator_3d overdamped_oscillator momentum_spring_pair fixed_particles_stay own_mass_acceleration energy_accounting energy_conservation_rk4)
