@@ -1,0 +1,8 @@
+psys_c_test(test_behavior
+  distance_equals_spring_2d distance_equals_spring_3d coincide_closed_form
+  point_on_plane_force point_on_sphere_force angle_hand_values
+  angle_rest_restores_no_net_force_or_torque energies
+  checker_catches_wrong_jacobian builtin_jacobians_pass_checker force_jacobian_gauss_newton
+  degenerate_cases_no_nan fd_jacobian_matches_analytic user_parabola_simulation api_validation
+  scene_round_trip_3d scene_round_trip_2d scene_resolved_values scene_user_behavior_not_saved
+  scene_bad_input)
