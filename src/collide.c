@@ -71,6 +71,7 @@ psys_status psys_system_add_plane(psys_system *s, const psys_plane_def *def)
     for (int k = 0; k < d; k++) {
         pl->p[k] = def->point[k];
         pl->n[k] = def->normal[k] / len;
+        pl->given_n[k] = def->normal[k];
     }
     pl->restitution = def->restitution;
     pl->friction = def->friction;

@@ -31,7 +31,8 @@ void psys__controller_eval(const psys__controller *c, int dim, double t, double 
         const size_t stride = 1 + (size_t)dim;
         const double *f = c->frames;
         size_t n = c->nframes;
-        if (t <= f[0] || n == 1) {
+        /* Each knot starts the piece to its right: [t_k, t_k+1) uses segment k. */
+        if (t < f[0] || n == 1) {
             memcpy(x, f + 1, sizeof(double) * (size_t)dim);
             memset(v, 0, sizeof(double) * (size_t)dim);
             break;
@@ -158,10 +159,12 @@ psys_status psys_system_control_circle(psys_system *sys, size_t i, const double 
     if (d == 2) {
         c.u[0] = 1;
         c.w[1] = 1;
-        c.axis[2] = 1;
+        c.given[2] = 1;
     } else {
         double a[3] = {0, 0, 1};
+        memcpy(c.given, a, sizeof a);
         if (axis) {
+            memcpy(c.given, axis, sizeof c.given);
             double len = finite_vec(axis, 3) ? norm(axis, 3) : 0;
             if (!(len > 0))
                 return psys__fail(&sys->err, PSYS_ERR_INVALID, "circle: axis must be a finite nonzero vector");
@@ -183,7 +186,6 @@ psys_status psys_system_control_circle(psys_system *sys, size_t i, const double 
         c.w[0] = a[1] * c.u[2] - a[2] * c.u[1];
         c.w[1] = a[2] * c.u[0] - a[0] * c.u[2];
         c.w[2] = a[0] * c.u[1] - a[1] * c.u[0];
-        memcpy(c.axis, a, sizeof a);
     }
     return install(sys, &c);
 }
@@ -202,8 +204,10 @@ psys_status psys_system_control_oscillate(psys_system *sys, size_t i, const doub
         return psys__fail(&sys->err, PSYS_ERR_INVALID,
                           "oscillate: center, a nonzero direction, amplitude, omega and phase must be finite");
     memcpy(c.center, center, sizeof(double) * (size_t)d);
-    for (int k = 0; k < d; k++)
+    for (int k = 0; k < d; k++) {
         c.u[k] = direction[k] / len;
+        c.given[k] = direction[k];
+    }
     c.amplitude = amplitude;
     c.omega = omega;
     c.phase = phase;

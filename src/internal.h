@@ -45,7 +45,8 @@ typedef enum psys__control_kind {
 typedef struct psys__controller {
     size_t particle;
     psys__control_kind kind;
-    double center[3], u[3], w[3], axis[3]; /* circle: basis u, w; oscillate: u = unit direction */
+    double center[3], u[3], w[3]; /* circle: basis u, w; oscillate: u = unit direction */
+    double given[3];              /* axis or direction as given (saved as is: re-normalising is not exact) */
     double radius, amplitude, omega, phase;
     double *frames;       /* keyframes: count × (1 + dim) */
     size_t nframes;
@@ -56,6 +57,7 @@ typedef struct psys__controller {
 /** One plane (normal unit length). */
 typedef struct psys__plane {
     double p[3], n[3];
+    double given_n[3]; /* normal as given, saved as is so a reload normalises identically */
     double restitution, friction;
     bool stick;
     psys_response response;

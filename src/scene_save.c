@@ -76,12 +76,12 @@ static cJSON *control_json(const psys__controller *c, int d)
              && cJSON_AddItemToObject(o, "center", psys__vec_json(c->center, d))
              && psys__add_num(o, "radius", c->radius) && psys__add_num(o, "omega", c->omega)
              && psys__add_num(o, "phase", c->phase)
-             && (d == 2 || cJSON_AddItemToObject(o, "axis", psys__vec_json(c->axis, 3)));
+             && (d == 2 || cJSON_AddItemToObject(o, "axis", psys__vec_json(c->given, 3)));
         break;
     case PSYS__CONTROL_OSCILLATE:
         ok = ok && cJSON_AddStringToObject(o, "type", "oscillate")
              && cJSON_AddItemToObject(o, "center", psys__vec_json(c->center, d))
-             && cJSON_AddItemToObject(o, "direction", psys__vec_json(c->u, d))
+             && cJSON_AddItemToObject(o, "direction", psys__vec_json(c->given, d))
              && psys__add_num(o, "amplitude", c->amplitude) && psys__add_num(o, "omega", c->omega)
              && psys__add_num(o, "phase", c->phase);
         break;
@@ -114,7 +114,7 @@ static bool add_planes(const psys_system *sys, cJSON *root)
             return false;
         cJSON_AddItemToArray(arr, o);
         if (!cJSON_AddItemToObject(o, "point", psys__vec_json(pl->p, sys->dim))
-            || !cJSON_AddItemToObject(o, "normal", psys__vec_json(pl->n, sys->dim))
+            || !cJSON_AddItemToObject(o, "normal", psys__vec_json(pl->given_n, sys->dim))
             || !psys__add_num(o, "restitution", pl->restitution)
             || !(pl->stick ? cJSON_AddStringToObject(o, "friction", "stick") != NULL
                            : psys__add_num(o, "friction", pl->friction) != NULL)
@@ -179,6 +179,12 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
     const psys_settings *set = &scene->settings;
     const psys_system *sys = scene->sys;
     psys__ok(err);
+    for (size_t k = 0; k < sys->nctrl; k++)
+        if (sys->ctrl[k].kind == PSYS__CONTROL_CALLBACK) {
+            psys__fail(err, PSYS_ERR_UNSUPPORTED, "particle %zu is driven by a C callback and has no scene form",
+                       sys->ctrl[k].particle);
+            return NULL;
+        }
     cJSON *root = cJSON_CreateObject();
     bool ok = root && psys__add_num(root, "psys", 1) && psys__add_num(root, "dim", sys->dim)
               && cJSON_AddStringToObject(root, "integrator", set->integrator)
@@ -191,13 +197,6 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
         psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
         return NULL;
     }
-    for (size_t k = 0; k < sys->nctrl; k++)
-        if (sys->ctrl[k].kind == PSYS__CONTROL_CALLBACK) {
-            cJSON_Delete(root);
-            psys__fail(err, PSYS_ERR_UNSUPPORTED, "particle %zu is driven by a C callback and has no scene form",
-                       sys->ctrl[k].particle);
-            return NULL;
-        }
     if (add_forces(sys, root, err) != PSYS_OK || !add_planes(sys, root)) {
         if (err && err->code == PSYS_OK)
             psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
