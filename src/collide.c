@@ -199,8 +199,10 @@ static void respond(psys_system *s, const psys__plane *pl, size_t i)
     }
 }
 
-/* Earliest crossing of a rollback plane by a particle that was clear of it
- * at y0: returns the fraction alpha of the step, or 2 if none. */
+/* Earliest crossing of a rollback plane: returns the fraction alpha of the
+ * step, or 2 if none. A particle touching the plane at y0 and moving into it
+ * collides at alpha = 0; one resting on it, or leaving it too slowly to be
+ * clear by the end of the step, is left to the end-of-step pass. */
 static double earliest_crossing(const psys_system *s, const double *y0, size_t *who, size_t *plane)
 {
     int d = s->dim;
@@ -216,9 +218,13 @@ static double earliest_crossing(const psys_system *s, const double *y0, size_t *
             if (d1 >= 0)
                 continue;
             double d0 = plane_distance(pl, y0 + i * d, d);
-            if (d0 <= PSYS_CONTACT_DISTANCE)
-                continue; /* already touching: displaced at the end instead */
-            double a = d0 / (d0 - d1);
+            double a;
+            if (d0 > PSYS_CONTACT_DISTANCE)
+                a = d0 / (d0 - d1);
+            else if (dot_d(y0 + (s->n + i) * (size_t)d, pl->n, d) < -PSYS_CONTACT_SPEED)
+                a = 0;
+            else
+                continue;
             if (a < best) {
                 best = a;
                 *who = i;
@@ -259,12 +265,14 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
         double lo = 0, hi = 1, dlo = plane_distance(pl, y0 + who * d, d);
         double dhi = plane_distance(pl, s->x + who * d, d), scale = dlo - dhi;
         int side = 0;
+        double done = alpha; /* the fraction the current state was integrated to */
         for (int it = 0; it < 12; it++) {
             restore_state(s, y0, t0);
             if (alpha > 0 && (st = step_exact(solver, alpha * left)) != PSYS_OK)
                 return st;
+            done = alpha;
             double dc = plane_distance(pl, s->x + who * d, d);
-            if (fabs(dc) <= 1e-12 * scale || hi - lo <= 1e-15)
+            if (alpha == 0 || fabs(dc) <= 1e-12 * scale || hi - lo <= 1e-15)
                 break;
             if (dc > 0) {
                 lo = alpha;
@@ -292,25 +300,37 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
                     && (i == who && k == pk ? true : plane_distance(q, s->x + i * d, d) < 0))
                     respond(s, q, i);
         }
-        t0 += alpha * left;
-        left -= alpha * left;
+        t0 += done * left;
+        left -= done * left;
         save_state(s, y0);
         if (left <= 1e-15 * fmax(1.0, fabs(t_end)))
             break;
         if ((st = step_exact(solver, left)) != PSYS_OK)
             return st;
     }
-    /* Anything still behind a plane (displace planes, particles that were
-     * already touching, leftovers) is projected back; sticky contacts lose
-     * their tangential velocity. */
+    /* Anything still behind a plane (displace planes, resting particles,
+     * leftovers) is projected back. A particle that started the (rest of the)
+     * step touching the plane and not approaching it fast, yet ends behind it,
+     * bounced below what this step can resolve: it comes to rest (this ends
+     * the endless series of ever smaller bounces). Sticky contacts lose their
+     * tangential velocity. */
     for (size_t k = 0; k < s->nplanes; k++) {
         const psys__plane *pl = &s->planes[k];
         for (size_t i = 0; i < s->n; i++) {
             if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
                 continue;
             double dist = plane_distance(pl, s->x + i * d, d);
-            if (dist < 0)
+            if (dist < 0) {
+                bool settled = plane_distance(pl, y0 + i * d, d) <= PSYS_CONTACT_DISTANCE
+                               && dot_d(y0 + (s->n + i) * (size_t)d, pl->n, d) >= -PSYS_CONTACT_SPEED;
                 respond(s, pl, i);
+                if (settled) {
+                    double *v = s->v + i * d, vn = dot_d(v, pl->n, d);
+                    if (vn > 0)
+                        for (int c = 0; c < d; c++)
+                            v[c] -= vn * pl->n[c];
+                }
+            }
             if (pl->stick && dist <= PSYS_CONTACT_DISTANCE) {
                 double *v = s->v + i * d, vn = dot_d(v, pl->n, d);
                 for (int c = 0; c < d; c++)

@@ -119,6 +119,10 @@ psys_status psys_system_mouse_set_target(psys_system *sys, size_t handle, const 
     memcpy(m->target, target, sizeof(double) * (size_t)sys->dim);
     for (int c = 0; c < sys->dim; c++)
         m->target_v[c] = target_velocity ? target_velocity[c] : 0.0;
+    /* A target set by hand takes over from a scripted path. */
+    psys__controller_free(&m->path);
+    m->path.frames = NULL;
+    m->path.nframes = 0;
     return PSYS_OK;
 }
 

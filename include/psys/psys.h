@@ -354,7 +354,7 @@ void psys_system_apply_controllers(psys_system *sys, double t);
  *  f = -ks (x - p) - kd (v - ṗ). Its force index goes to *handle. */
 psys_status psys_system_add_mouse_spring(psys_system *sys, size_t i, const double *target, double ks,
                                          double kd, size_t *handle);
-/** Move a mouse spring's target (velocity of the target: NULL = at rest). */
+/** Move a mouse spring's target, replacing any scripted path (velocity NULL = at rest). */
 psys_status psys_system_mouse_set_target(psys_system *sys, size_t handle, const double *target,
                                          const double *target_velocity);
 /** Scripted drag: the target follows count frames [t, x...] piecewise linearly. */
