@@ -172,9 +172,12 @@ psys_status psys__parse_ref_item(psys__parse *p, const cJSON *it, const char *pa
     }
     if (cJSON_IsNumber(it)) {
         double v = it->valuedouble;
-        if (v != floor(v) || v < 0 || v >= (double)p->sys->n)
-            return psys__parse_fail(p, path, it, "particle index out of range (there are %zu particles)",
-                                    p->sys->n);
+        if (v != floor(v) || v < 0 || v >= (double)p->sys->n) {
+            if (p->sys->n == 0)
+                return psys__parse_fail(p, path, it, "particle index out of range (there are no particles)");
+            return psys__parse_fail(p, path, it, "particle index out of range (particles are numbered 0 to %zu)",
+                                    p->sys->n - 1);
+        }
         *out = (size_t)v;
         return PSYS_OK;
     }

@@ -952,7 +952,7 @@ static void scene_bad_input(void)
     expect_scene_error(B "\"function\": \"distance\", \"particles\": [\"a\", \"zz\"], \"ks\": 1}",
                        "forces[1].particles[1]: unknown particle id (got \"zz\")");
     expect_scene_error(B "\"function\": \"distance\", \"particles\": [7, \"a\"], \"ks\": 1}",
-                       "forces[1].particles[0]: particle index out of range (there are 3 particles) (got 7)");
+                       "forces[1].particles[0]: particle index out of range (particles are numbered 0 to 2) (got 7)");
     expect_scene_error(B "\"function\": \"distance\", \"particles\": [\"a\", true], \"ks\": 1}",
                        "forces[1].particles[1]: must be a particle id (string) or index (integer) (got true)");
     expect_scene_error(B "\"function\": \"distance\", \"particles\": [\"b\", \"b\"], \"ks\": 1}",

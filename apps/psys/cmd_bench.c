@@ -137,6 +137,10 @@ int cmd_bench(int argc, char **argv)
                 cli_error("--integrator: must be a fixed-step solver (got %s)", integrator);
                 return EXIT_BAD_INPUT;
             }
+        } else if (argv[i][0] == '-' && (strcmp(argv[i], "--reps") == 0 || strcmp(argv[i], "--seconds") == 0
+                                         || strcmp(argv[i], "--integrator") == 0)) {
+            cli_error("%s needs a value (see psys --help)", argv[i]);
+            return EXIT_BAD_INPUT;
         } else if (argv[i][0] == '-') {
             cli_error("bench: unknown option %s (see psys --help)", argv[i]);
             return EXIT_BAD_INPUT;

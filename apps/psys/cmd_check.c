@@ -68,7 +68,10 @@ int cmd_check(int argc, char **argv)
     fprintf(info, "dt: %.17g\n", set->dt);
     if (set->use_steps) {
         fprintf(info, "steps: %lld\n", set->steps);
-        fprintf(info, "duration: %.17g\n", (double)set->steps * set->dt);
+        if (strcmp(set->integrator, "rk45") == 0)
+            fprintf(info, "duration: adaptive\n");
+        else
+            fprintf(info, "duration: %.17g\n", (double)set->steps * set->dt);
     } else {
         if (strcmp(set->integrator, "rk45") == 0) {
             fprintf(info, "steps: adaptive\n");

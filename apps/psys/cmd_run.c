@@ -156,20 +156,22 @@ static int apply_flags(const run_opts *o, psys_settings *set)
     COPY_PATH(o->energy, energy)
     COPY_PATH(o->render, render)
 #undef COPY_PATH
+    const char *traj_label = o->out ? "--out" : "output.trajectory";
     if (set->trajectory[0]) {
         const char *ext = extension(set->trajectory);
         if (strcmp(ext, ".vtk") == 0 || strcmp(ext, ".vtp") == 0 || strcmp(ext, ".xyz") == 0) {
-            cli_error("--out %s: the %s format is not available in this version of psys yet (use .csv)",
+            cli_error("%s %s: the %s format is not available in this version of psys yet (use .csv)", traj_label,
                       set->trajectory, ext);
             return -1;
         }
         if (strcmp(ext, ".csv") != 0) {
-            cli_error("--out %s: unknown trajectory format (got \"%s\"; use .csv)", set->trajectory, ext);
+            cli_error("%s %s: unknown trajectory format (got \"%s\"; use .csv)", traj_label, set->trajectory, ext);
             return -1;
         }
     }
     if (set->render[0]) {
-        cli_error("--render %s: rendering is not available in this version of psys yet", set->render);
+        cli_error("%s %s: rendering is not available in this version of psys yet", o->render ? "--render" : "output.render",
+                  set->render);
         return -1;
     }
     return 0;
@@ -270,6 +272,10 @@ int cmd_run(int argc, char **argv)
             psys_scene_destroy(scene);
             return EXIT_BAD_INPUT;
         }
+        /* A resumed run writes only the outputs asked for now: reusing the
+         * paths stored in the checkpoint would overwrite the first run's files. */
+        psys_settings *rset = psys_scene_settings(scene);
+        rset->trajectory[0] = rset->energy[0] = rset->render[0] = '\0';
     }
     psys_settings *set = psys_scene_settings(scene);
     if (apply_flags(&o, set) != 0) {

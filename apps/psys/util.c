@@ -22,16 +22,39 @@ void cli_error(const char *fmt, ...)
 int outfile_open(outfile *o, const char *path, const char *what)
 {
     memset(o, 0, sizeof *o);
+    struct stat st;
+    if (stat(path, &st) == 0 && !S_ISREG(st.st_mode)) {
+        /* A device or FIFO (/dev/null, a pipe to another program) is written
+         * directly: renaming over it would replace it with a regular file. */
+        if (S_ISDIR(st.st_mode)) {
+            cli_error("%s %s: is a directory", what, path);
+            return -1;
+        }
+        o->fp = fopen(path, "w");
+        if (!o->fp) {
+            cli_error("%s %s: cannot open: %s", what, path, strerror(errno));
+            return -1;
+        }
+        return 0;
+    }
+    /* Through a symbolic link, replace the file it points to, not the link. */
+    char *resolved = NULL;
+    if (lstat(path, &st) == 0 && S_ISLNK(st.st_mode))
+        resolved = realpath(path, NULL);
+    if (resolved)
+        path = resolved;
     size_t len = strlen(path);
     o->path = malloc(len + 1);
     o->tmp = malloc(len + 32);
     if (!o->path || !o->tmp) {
         cli_error("%s %s: out of memory", what, path);
+        free(resolved);
         outfile_abort(o);
         return -1;
     }
     memcpy(o->path, path, len + 1);
-    snprintf(o->tmp, len + 32, "%s.psys-tmp-XXXXXX", path);
+    free(resolved);
+    snprintf(o->tmp, len + 32, "%s.psys-tmp-XXXXXX", o->path);
     int fd = mkstemp(o->tmp);
     if (fd < 0) {
         cli_error("%s %s: cannot create: %s", what, path, strerror(errno));
@@ -58,6 +81,11 @@ int outfile_commit(outfile *o)
 {
     if (!o->fp)
         return 0;
+    if (!o->tmp) { /* written directly (a device or FIFO) */
+        int bad = ferror(o->fp) | (fclose(o->fp) != 0);
+        o->fp = NULL;
+        return bad ? -1 : 0;
+    }
     int bad = ferror(o->fp) || fflush(o->fp) != 0;
     bad |= fclose(o->fp) != 0;
     o->fp = NULL;

@@ -214,9 +214,9 @@ bad_scene every_zero '{"psys": 1, "output": {"every": 0}}' 'output.every: must b
 bad_scene ref_unknown_id '{"psys": 1, "dim": 2, '"$P2"', "forces": [{"type": "spring", "a": "a", "b": "c", "ks": 1}]}' \
     'forces[0].b: unknown particle id (got "c")'
 bad_scene ref_index_range '{"psys": 1, "dim": 2, '"$P2"', "forces": [{"type": "spring", "a": 2, "b": 0, "ks": 1}]}' \
-    'forces[0].a: particle index out of range (there are 2 particles) (got 2)'
+    'forces[0].a: particle index out of range (particles are numbered 0 to 1) (got 2)'
 bad_scene ref_index_negative '{"psys": 1, "dim": 2, '"$P2"', "forces": [{"type": "spring", "a": 0, "b": -1, "ks": 1}]}' \
-    'forces[0].b: particle index out of range (there are 2 particles) (got -1)'
+    'forces[0].b: particle index out of range (particles are numbered 0 to 1) (got -1)'
 bad_scene ref_bool '{"psys": 1, "dim": 2, '"$P2"', "forces": [{"type": "spring", "a": 0, "b": true, "ks": 1}]}' \
     'forces[0].b: must be a particle id (string) or index (integer) (got true)'
 bad_scene duplicate_id '{"psys": 1, "dim": 2, "particles": [{"id": "a", "x": [0, 0]}, {"id": "b", "x": [1, 0]}, {"id": "a", "x": [2, 0]}]}' \

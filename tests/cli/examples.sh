@@ -1,0 +1,239 @@
+#!/usr/bin/env bash
+# Tests of the example scenes, the demo and the numbers the documentation
+# quotes about them.
+#
+#   examples.sh PSYS SRCDIR EXAMPLE.json...   each scene: `psys check` and a
+#                                             short `psys run --steps 50`, exit 0,
+#                                             finite, well-formed CSV
+#   examples.sh PSYS SRCDIR --all             the same for every examples/*.json
+#   examples.sh PSYS SRCDIR --generator       examples/cloth-small.json is exactly
+#                                             what scripts/gen-cloth.sh writes
+#   examples.sh PSYS SRCDIR --claims          the physics README/docs state
+#   examples.sh PSYS SRCDIR --demo            scripts/demo.sh runs and writes its files
+#   examples.sh PSYS SRCDIR --docs            every ```json block of README.md and
+#                                             docs/*.md that is a whole scene (it has
+#                                             a "psys" key) is one `psys check` accepts
+set -euo pipefail
+
+if [ $# -lt 3 ]; then
+  echo "usage: examples.sh PSYS SRCDIR (EXAMPLE.json... | --all | --generator | --claims | --demo | --docs)" >&2
+  exit 2
+fi
+psys=$(cd "$(dirname "$1")" && pwd)/$(basename "$1")
+src=$(cd "$2" && pwd)
+shift 2
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cd "$work"   # scenes name their own output files; keep them out of the tree
+
+failures=0
+fail() {
+  echo "FAIL: $*" >&2
+  failures=$((failures + 1))
+}
+
+# check_csv FILE HEADER: the header matches and every other field is a finite number.
+check_csv() {
+  local file=$1 header=$2
+  if [ ! -s "$file" ]; then
+    fail "$file is missing or empty"
+    return
+  fi
+  if [ "$(head -n 1 "$file")" != "$header" ]; then
+    fail "$file: header is '$(head -n 1 "$file")', expected '$header'"
+    return
+  fi
+  local bad
+  bad=$(awk -F, -v cols="$(awk -F, '{ print NF; exit }' <<<"$header")" '
+    NR == 1 { next }
+    NF != cols { print "line " NR ": " NF " fields"; exit }
+    { for (k = 1; k <= NF; k++)
+        if ($k !~ /^-?[0-9]+(\.[0-9]*)?(e[-+]?[0-9]+)?$/) { print "line " NR ": field " k " is " $k; exit } }
+  ' "$file")
+  [ -z "$bad" ] || fail "$file: not finite numbers: $bad"
+}
+
+# value KEY: the value of "KEY: value" in psys check output ($summary).
+value() { awk -F': ' -v k="$1" '$1 == k { print $2 }' <<<"$summary"; }
+
+test_example() {
+  local ex=$1 name summary n dim header rows steps before=$failures
+  name=$(basename "$ex" .json)
+  if ! summary=$("$psys" check "$ex" 2>&1); then
+    fail "$name: psys check failed: $summary"
+    return
+  fi
+  n=$(value particles)
+  dim=$(value dim)
+  [[ "$n" =~ ^[1-9][0-9]*$ ]] || fail "$name: psys check reports particles '$n'"
+  [[ "$(value energy)" =~ ^-?[0-9] ]] || fail "$name: psys check reports energy '$(value energy)'"
+  if [ "$dim" = 2 ]; then header="step,t,i,x,y,vx,vy"; else header="step,t,i,x,y,z,vx,vy,vz"; fi
+  rm -f "$name.csv" "$name-energy.csv"
+  if ! "$psys" run "$ex" --steps 50 --every 10 --out "$name.csv" --energy "$name-energy.csv" --quiet; then
+    fail "$name: psys run --steps 50 failed"
+    return
+  fi
+  check_csv "$name.csv" "$header"
+  check_csv "$name-energy.csv" "step,t,kinetic,potential,total"
+  rows=$(($(wc -l <"$name.csv") - 1))
+  if [ "$rows" -lt $((2 * n)) ] || [ $((rows % n)) -ne 0 ]; then
+    fail "$name: $rows trajectory rows for $n particles"
+  fi
+  steps=$(tail -n 1 "$name-energy.csv" | cut -d, -f1)
+  [ "$steps" = 50 ] || fail "$name: last frame is step $steps, expected 50"
+  # The scene's own run (its settings and output names) must stay short and finite.
+  if ! "$psys" run "$ex" --quiet; then
+    fail "$name: psys run with the scene's own settings failed"
+  fi
+  [ "$failures" -ne "$before" ] || echo "ok: $name ($n particles, dim $dim)"
+}
+
+# near A B TOL WHAT
+near() {
+  awk -v a="$1" -v b="$2" -v tol="$3" 'BEGIN { d = a - b; if (d < 0) d = -d; exit !(d <= tol) }' \
+    || fail "$4: got $1, expected $2 (tolerance $3)"
+}
+
+test_claims() {
+  local ex=$src/examples
+  # spring-oscillator: x(t) - r = A e^(-ζω0 t)(cos ωd t + ζ/√(1-ζ²) sin ωd t), period 2π/ωd.
+  "$psys" run "$ex/spring-oscillator.json" --every 1 --out osc.csv --quiet
+  local err period
+  err=$(awk -F, 'NR > 1 && $3 == 1 {
+      m = 1; k = 100; c = 0.5; A = 0.2; w0 = sqrt(k / m); z = c / (2 * sqrt(k * m)); wd = w0 * sqrt(1 - z * z)
+      e = A * exp(-z * w0 * $2) * (cos(wd * $2) + z / sqrt(1 - z * z) * sin(wd * $2))
+      d = $4 - 1 - e; if (d < 0) d = -d; if (d > max) max = d; if ($5 != 0) max = 1 }
+    END { print max + 0 }' osc.csv)
+  near "$err" 0 1e-8 "spring-oscillator: largest deviation from the closed form"
+  period=$(awk -F, 'NR > 1 && $3 == 1 { u = $4 - 1
+      if (have && pu < 0 && u >= 0) { tc = pt + ($2 - pt) * (-pu) / (u - pu); if (t0 == "") t0 = tc; else { t1 = tc; n++ } }
+      pt = $2; pu = u; have = 1 }
+    END { printf "%.9f", (t1 - t0) / n }' osc.csv)
+  near "$period" 0.628514972 1e-6 "spring-oscillator: damped period"
+
+  # hanging-chain: settles to the discrete catenary, middle particle 1.3611 m below the anchors.
+  "$psys" run "$ex/hanging-chain.json" --out chain.csv --energy chain-e.csv --quiet
+  local sag ke
+  sag=$(awk -F, 'NR > 1 && $3 == 10 { y = $5 } END { print -y }' chain.csv)
+  near "$sag" 1.3611 0.0005 "hanging-chain: sag of the middle particle"
+  ke=$(tail -n 1 chain-e.csv | cut -d, -f3)
+  near "$ke" 0 1e-5 "hanging-chain: kinetic energy at the end"
+
+  # orbit-free-pair: total momentum (2, 0) and angular momentum kept to round-off;
+  # verlet keeps the energy within 2e-5 J of 6.5 J (it oscillates, it does not drift).
+  "$psys" run "$ex/orbit-free-pair.json" --out pair.csv --energy pair-e.csv --quiet
+  local drift
+  drift=$(awk -F, 'NR > 1 { m = ($3 == 0) ? 1 : 3; px[$1] += m * $6; py[$1] += m * $7; L[$1] += m * ($4 * $7 - $5 * $6) }
+    END { for (s in px) { d = px[s] - 2; if (d < 0) d = -d; if (d > w) w = d
+                          d = py[s]; if (d < 0) d = -d; if (d > w) w = d
+                          d = L[s] - L[0]; if (d < 0) d = -d; if (d > w) w = d }
+          print w + 0 }' pair.csv)
+  near "$drift" 0 1e-12 "orbit-free-pair: momentum and angular momentum drift"
+  drift=$(awk -F, 'NR > 1 { d = $5 - 6.5; if (d < 0) d = -d; if (d > w) w = d } END { print w + 0 }' pair-e.csv)
+  near "$drift" 0 2e-5 "orbit-free-pair: energy drift"
+
+  # projectile-drag: rk45 at tolerance 1e-9 follows the closed form of linear drag.
+  "$psys" run "$ex/projectile-drag.json" --out ball.csv --quiet
+  err=$(awk -F, 'NR > 1 { k = 0.25 / 0.5; vt = -9.81 / k; t = $2; q = 1 - exp(-k * t)
+      x = 10 / k * q; y = vt * t + (10 - vt) / k * q; vy = vt + (10 - vt) * exp(-k * t)
+      d = $4 - x; if (d < 0) d = -d; if (d > w) w = d
+      d = $5 - y; if (d < 0) d = -d; if (d > w) w = d
+      d = $8 - vy; if (d < 0) d = -d; if (d > w) w = d }
+    END { print w + 0 }' ball.csv)
+  near "$err" 0 1e-8 "projectile-drag: deviation from the closed form"
+  # rk45 lands exactly on every output time: frames at multiples of every·dt = 0.05 s.
+  local times
+  times=$(awk -F, 'NR > 1 { printf "%s ", $2 }' ball.csv | cut -d' ' -f1-3,61)
+  [ "$times" = "0 0.050000000000000003 0.10000000000000001 3" ] || fail "projectile-drag: frame times $times"
+
+  # pendulum: a stiff spring of 1 m from a 90° start swings with the period of a
+  # rigid pendulum at that amplitude, 2.37 s (the spring stretches slightly).
+  "$psys" run "$ex/pendulum.json" --every 1 --out pend.csv --quiet
+  period=$(awk -F, 'NR > 1 && $3 == 1 { u = $4
+      if (have && pu < 0 && u >= 0) { tc = pt + ($2 - pt) * (-pu) / (u - pu); if (t0 == "") t0 = tc; else { t1 = tc; n++ } }
+      pt = $2; pu = u; have = 1 }
+    END { printf "%.4f", (t1 - t0) / n }' pend.csv)
+  near "$period" 2.37 0.02 "pendulum: period"
+
+  # bouncing-balls: restitution 0.8 makes each apex 0.64 of the one before
+  # (1 m dropped: 0.64, 0.4096, 0.262144 m); the dropped ball is at rest on the
+  # floor by t = 4.5 s (the bounces add up to 4.06 s); the thrown ball then
+  # slides with v(t) ∝ exp(-k_f g t), k_f = 0.2; no ball is ever behind a plane.
+  "$psys" run "$ex/bouncing-balls.json" --every 1 --out balls.csv --quiet
+  local apexes
+  apexes=$(awk -F, 'NR > 1 && $3 == 0 { y = $5; if (c > 1 && py > ppy && py >= y && n < 3) { printf "%.5f ", py; n++ }
+                                          ppy = py; py = y; c++ }' balls.csv)
+  [ "$apexes" = "0.64000 0.40960 0.26214 " ] || fail "bouncing-balls: apex heights $apexes"
+  local rest
+  rest=$(awk -F, 'NR > 1 && $3 == 0 && $2 >= 4.5 && ($5 != 0 || $6 != 0 || $7 != 0) { n++ } END { print n + 0 }' balls.csv)
+  [ "$rest" = 0 ] || fail "bouncing-balls: the dropped ball is not at rest after t = 4.5 s ($rest frames)"
+  local ratio
+  ratio=$(awk -F, 'NR > 1 && $3 == 1 && $2 == 4.5 { a = $6 } NR > 1 && $3 == 1 && $2 == 5 { b = $6 } END { print b / a }' balls.csv)
+  near "$ratio" "$(awk 'BEGIN { print exp(-0.2 * 9.81 * 0.5) }')" 1e-3 "bouncing-balls: friction slow-down over 0.5 s"
+  local behind
+  behind=$(awk -F, 'NR > 1 && ($5 < 0 || $4 < -1 || $4 > 1) { n++ } END { print n + 0 }' balls.csv)
+  [ "$behind" = 0 ] || fail "bouncing-balls: $behind rows behind a plane"
+
+  # driven-pendulum: the controlled pivot is exactly on x = 0.05 sin 3t with the
+  # exact velocity 0.15 cos 3t at every frame (controllers are not integrated).
+  "$psys" run "$ex/driven-pendulum.json" --out driven.csv --quiet
+  err=$(awk -F, 'NR > 1 && $3 == 0 { d = $4 - 0.05 * sin(3 * $2); if (d < 0) d = -d; if (d > w) w = d
+                                     d = $6 - 0.15 * cos(3 * $2); if (d < 0) d = -d; if (d > w) w = d
+                                     if ($5 != 0 || $7 != 0) w = 1 }
+                 END { print w + 0 }' driven.csv)
+  near "$err" 0 1e-12 "driven-pendulum: pivot off its prescribed path"
+  [ "$failures" -ne 0 ] || echo "ok: claims"
+}
+
+case "$1" in
+  --all)
+    shopt -s nullglob
+    examples=("$src"/examples/*.json)
+    [ ${#examples[@]} -gt 0 ] || fail "no examples/*.json"
+    for ex in "${examples[@]}"; do test_example "$ex"; done
+    ;;
+  --generator)
+    if ! bash "$src/scripts/gen-cloth.sh" | cmp -s - "$src/examples/cloth-small.json"; then
+      fail "examples/cloth-small.json differs from scripts/gen-cloth.sh output (regenerate: scripts/gen-cloth.sh > examples/cloth-small.json)"
+    else
+      echo "ok: examples/cloth-small.json matches scripts/gen-cloth.sh"
+    fi
+    ;;
+  --claims)
+    test_claims
+    ;;
+  --demo)
+    out=$(bash "$src/scripts/demo.sh" "$psys" demo-out) || fail "scripts/demo.sh failed"
+    echo "$out"
+    check_csv demo-out/cloth.csv "step,t,i,x,y,z,vx,vy,vz"
+    check_csv demo-out/cloth-energy.csv "step,t,kinetic,potential,total"
+    grep -q '^run: .* 151 frames written' <<<"$out" || fail "demo summary does not report 151 frames"
+    ;;
+  --docs)
+    count=0
+    for doc in "$src"/README.md "$src"/docs/*.md; do
+      [ -f "$doc" ] || continue
+      base=$(basename "$doc" .md)
+      awk -v out="$base" '/^```json[ \t]*$/ { n++; f = out "-" n ".json"; inb = 1; next }
+                          /^```/ { inb = 0; next }
+                          inb { print > f }' "$doc"
+    done
+    for snippet in *.json; do
+      [ -f "$snippet" ] || continue
+      grep -q '"psys"' "$snippet" || continue   # a fragment (one force, one structure)
+      count=$((count + 1))
+      msg=$("$psys" check "$snippet" 2>&1 >/dev/null) || fail "json snippet $snippet (file-block number) is not a valid scene: $msg"
+    done
+    [ "$count" -gt 0 ] || fail "no json snippets found in README.md and docs/"
+    [ "$failures" -ne 0 ] || echo "ok: $count json snippets in README.md and docs/ are valid scenes"
+    ;;
+  *)
+    for ex in "$@"; do test_example "$ex"; done
+    ;;
+esac
+
+if [ "$failures" -ne 0 ]; then
+  echo "$failures failure(s)" >&2
+  exit 1
+fi
