@@ -9,7 +9,9 @@
  * Contact: a particle within PSYS_CONTACT_DISTANCE of a plane whose normal
  * speed is below PSYS_CONTACT_SPEED and that is pushed into it (N·f < 0)
  * gets the contact force -(N·f)N and linear friction -k_f(-N·f)v_t; on a
- * `stick` plane the tangential force and velocity are zeroed instead. */
+ * `stick` plane the tangential force and velocity are zeroed instead. A plane
+ * may grip harder against a `forward` direction (backward_friction), the
+ * scales that let Miller's worms crawl. */
 #include "internal.h"
 
 #include <math.h>
@@ -58,6 +60,25 @@ psys_status psys_system_add_plane(psys_system *s, const psys_plane_def *def)
         return psys__fail(&s->err, PSYS_ERR_INVALID, "plane friction must be finite and >= 0");
     if (def->response != PSYS_RESPONSE_ROLLBACK && def->response != PSYS_RESPONSE_DISPLACE)
         return psys__fail(&s->err, PSYS_ERR_INVALID, "unknown collision response");
+    if (!(def->backward_friction >= 0) || !isfinite(def->backward_friction))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "plane backward friction must be finite and >= 0");
+    /* The forward direction lives in the plane: its normal component is dropped. */
+    double fwd[3] = {0, 0, 0}, fn = 0, fl = 0;
+    for (int k = 0; k < d; k++) {
+        if (!isfinite(def->forward[k]))
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "plane forward direction must be finite");
+        fn += def->forward[k] * def->normal[k] / len;
+    }
+    for (int k = 0; k < d; k++) {
+        fwd[k] = def->forward[k] - fn * def->normal[k] / len;
+        fl += fwd[k] * fwd[k];
+    }
+    fl = sqrt(fl);
+    bool any_forward = false;
+    for (int k = 0; k < d; k++)
+        any_forward |= def->forward[k] != 0;
+    if (any_forward && !(fl > 1e-12))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "plane forward direction must not be along the normal");
     if (s->nplanes == s->planes_cap) {
         size_t cap = s->planes_cap ? 2 * s->planes_cap : 4;
         psys__plane *p = psys__realloc(s->planes, cap, sizeof *p);
@@ -77,6 +98,11 @@ psys_status psys_system_add_plane(psys_system *s, const psys_plane_def *def)
     pl->friction = def->friction;
     pl->stick = def->stick;
     pl->response = def->response;
+    pl->backward_friction = any_forward ? def->backward_friction : def->friction;
+    for (int k = 0; k < d; k++) {
+        pl->forward[k] = any_forward ? fwd[k] / fl : 0.0;
+        pl->given_forward[k] = def->forward[k];
+    }
     s->nplanes++;
     if (psys__planes_reserve(s) != PSYS_OK) {
         s->nplanes--;
@@ -99,6 +125,8 @@ psys_status psys_system_plane(const psys_system *s, size_t k, psys_plane_def *de
     def->friction = pl->friction;
     def->stick = pl->stick;
     def->response = pl->response;
+    memcpy(def->forward, pl->forward, sizeof pl->forward);
+    def->backward_friction = pl->backward_friction;
     return PSYS_OK;
 }
 
@@ -141,9 +169,17 @@ void psys__contact_forces(const psys_system *s, const double *x, const double *v
                     fi[c] = 0; /* normal part cancelled, tangential part held by the surface */
                 continue;
             }
+            double kf = pl->friction;
+            if (pl->backward_friction != pl->friction) {
+                double along = 0; /* v_t·forward = v·forward, forward being in the plane */
+                for (int c = 0; c < d; c++)
+                    along += vi[c] * pl->forward[c];
+                if (along < 0)
+                    kf = pl->backward_friction;
+            }
             for (int c = 0; c < d; c++) {
                 double vt = vi[c] - vn * pl->n[c];
-                fi[c] += -fn * pl->n[c] - pl->friction * (-fn) * vt;
+                fi[c] += -fn * pl->n[c] - kf * (-fn) * vt;
             }
         }
     }

@@ -61,6 +61,9 @@ typedef struct psys__plane {
     double restitution, friction;
     bool stick;
     psys_response response;
+    double forward[3];       /* unit, or zero when friction is the same in every direction */
+    double given_forward[3]; /* as given, for saving */
+    double backward_friction;
 } psys__plane;
 
 struct psys_system {

@@ -430,7 +430,8 @@ static psys_status parse_list(psys__parse *p, const cJSON *root, const char *key
 /* planes: {point, normal, restitution, friction (number or "stick"), response} */
 static psys_status parse_plane(psys__parse *p, const cJSON *obj, const char *path)
 {
-    static const char *const keys[] = {"point", "normal", "restitution", "friction", "response", NULL};
+    static const char *const keys[] = {"point", "normal", "restitution", "friction", "response",
+                                       "forward", "backward_friction", NULL};
     psys_plane_def def = psys_plane_def_default();
     char kp[256];
     psys_status st;
@@ -470,6 +471,29 @@ static psys_status parse_plane(psys__parse *p, const cJSON *obj, const char *pat
             def.response = PSYS_RESPONSE_DISPLACE;
         else
             return psys__parse_fail(p, kp, resp, "must be \"rollback\" or \"displace\"");
+    }
+    const cJSON *fw = cJSON_GetObjectItemCaseSensitive(obj, "forward");
+    const cJSON *bf = cJSON_GetObjectItemCaseSensitive(obj, "backward_friction");
+    if (!!fw != !!bf) {
+        key_path(kp, sizeof kp, path, fw ? "backward_friction" : "forward");
+        return psys__parse_fail(p, kp, NULL, "required key missing (forward and backward_friction go together)");
+    }
+    if (fw) {
+        if (def.stick) {
+            key_path(kp, sizeof kp, path, "forward");
+            return psys__parse_fail(p, kp, NULL, "directional friction does not apply to a \"stick\" plane");
+        }
+        if ((st = psys__parse_vec(p, obj, path, "forward", NULL, def.forward)) != PSYS_OK
+            || (st = psys__parse_number(p, obj, path, "backward_friction", false, 0, 0, false,
+                                        &def.backward_friction)) != PSYS_OK)
+            return st;
+        double f2 = 0;
+        for (int k = 0; k < p->sys->dim; k++)
+            f2 += def.forward[k] * def.forward[k];
+        if (!(f2 > 0)) {
+            key_path(kp, sizeof kp, path, "forward");
+            return psys__parse_fail(p, kp, fw, "must not be zero");
+        }
     }
     if (psys_system_add_plane(p->sys, &def) != PSYS_OK)
         return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));

@@ -120,6 +120,12 @@ static bool add_planes(const psys_system *sys, cJSON *root)
                            : psys__add_num(o, "friction", pl->friction) != NULL)
             || !cJSON_AddStringToObject(o, "response", pl->response == PSYS_RESPONSE_DISPLACE ? "displace" : "rollback"))
             return false;
+        bool directional = false;
+        for (int c = 0; c < sys->dim; c++)
+            directional |= pl->given_forward[c] != 0;
+        if (directional && (!cJSON_AddItemToObject(o, "forward", psys__vec_json(pl->given_forward, sys->dim))
+                            || !psys__add_num(o, "backward_friction", pl->backward_friction)))
+            return false;
     }
     return true;
 }

@@ -380,6 +380,10 @@ typedef struct psys_plane_def {
     double friction;      /**< linear friction k_f >= 0: f = -k_f (-f·N) v_t in contact */
     bool stick;           /**< non-slip surface: tangential velocity zeroed in contact */
     psys_response response; /**< collision response */
+    /** Directional friction (scales, as under Miller's worms): when nonzero,
+     *  sliding against `forward` uses backward_friction instead of friction. */
+    double forward[3];
+    double backward_friction; /**< k_f for tangential velocity with v_t·forward < 0 */
 } psys_plane_def;
 
 /** Defaults of DESIGN §3a: restitution 0.5, friction 0, rollback, normal +y. */
