@@ -268,6 +268,7 @@ static void springs_jacobian(void *data, const psys_force_eval *e, psys_jacobian
 {
     const springs *s = data;
     const double *rest = rest_at(data, e->t);
+    const bool definite = psys_jacobian_wants_definite(J);
     int d = e->dim;
     for (size_t k = 0; k < s->n; k++) {
         size_t a = s->a[k], b = s->b[k];
@@ -287,11 +288,19 @@ static void springs_jacobian(void *data, const psys_force_eval *e, psys_jacobian
         for (int c = 0; c < d; c++)
             pld[c] = ld[c] - udot * u[c];
         double kx[9], kv[9], nkx[9], nkv[9];
-        double ks = s->ks[k], kd = s->kd[k], fr = 1.0 - rest[k] / len;
+        double ks = s->ks[k], kd = s->kd[k], fr = 1.0 - rest[k] / len, kdl = kd / len;
+        if (definite) {
+            /* Implicit solvers need -∂f/∂x symmetric positive semi-definite:
+             * a compressed spring's transverse term and the damping part of
+             * ∂f/∂x are dropped (Baraff & Witkin 1998; Choi & Ko 2002). */
+            if (fr < 0)
+                fr = 0;
+            kdl = 0;
+        }
         for (int r = 0; r < d; r++)
             for (int c = 0; c < d; c++) {
                 double uu = u[r] * u[c], p = (r == c ? 1.0 : 0.0) - uu;
-                kx[r * d + c] = -ks * (uu + fr * p) - kd / len * (u[r] * pld[c] + udot * p);
+                kx[r * d + c] = -ks * (uu + fr * p) - kdl * (u[r] * pld[c] + udot * p);
                 kv[r * d + c] = -kd * uu;
                 nkx[r * d + c] = -kx[r * d + c];
                 nkv[r * d + c] = -kv[r * d + c];

@@ -104,6 +104,7 @@ void psys__sys_eval(const psys_system *s, double t, const double *x, const doubl
 struct psys_jacobian {
     void (*add)(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv);
     void *ctx;
+    bool definite; /* see psys_jacobian_wants_definite */
 };
 
 /* ---- spring set internals (force_spring.c) ---- */

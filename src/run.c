@@ -50,6 +50,8 @@ psys_run *psys_run_create(psys_scene *scene, psys_error *err)
         return NULL;
     }
     psys_solver_set_tolerance(r->solver, set->tolerance);
+    psys_solver_set_cg(r->solver, set->cg_tolerance,
+                       set->cg_max_iterations > 1000000000 ? 1000000000 : (int)set->cg_max_iterations);
     r->dt = set->dt;
     r->every = set->every;
     r->adaptive = psys_solver_is_adaptive(r->solver);

@@ -550,7 +550,7 @@ static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *sce
 {
     static const char *const keys[] = {"psys", "dim", "integrator", "dt", "duration", "steps", "tolerance",
                                        "particles", "forces", "planes", "structures", "output", "box",
-                                       "checkpoint", NULL};
+                                       "checkpoint", "cg_tolerance", "cg_max_iterations", NULL};
     psys_settings *set = &scene->settings;
     psys_status st;
     if (!cJSON_IsObject(root))
@@ -580,7 +580,10 @@ static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *sce
     bool has_steps = false;
     if ((st = psys__parse_number(p, root, "", "dt", true, set->dt, 0, true, &set->dt)) != PSYS_OK
         || (st = psys__parse_number(p, root, "", "tolerance", true, set->tolerance, 0, true, &set->tolerance)) != PSYS_OK
-        || (st = parse_integer(p, root, "", "steps", 0, &set->steps, &has_steps)) != PSYS_OK)
+        || (st = parse_integer(p, root, "", "steps", 0, &set->steps, &has_steps)) != PSYS_OK
+        || (st = psys__parse_number(p, root, "", "cg_tolerance", true, set->cg_tolerance, 0, true,
+                                    &set->cg_tolerance)) != PSYS_OK
+        || (st = parse_integer(p, root, "", "cg_max_iterations", 1, &set->cg_max_iterations, NULL)) != PSYS_OK)
         return st;
     const cJSON *dur = cJSON_GetObjectItemCaseSensitive(root, "duration");
     if (dur && has_steps)
@@ -620,6 +623,8 @@ psys_settings psys_settings_default(void)
     s.duration = 1.0;
     s.tolerance = 1e-6;
     s.every = 1;
+    s.cg_tolerance = 1e-6;
+    s.cg_max_iterations = 1000;
     return s;
 }
 

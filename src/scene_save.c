@@ -197,7 +197,11 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
               && psys__add_num(root, "dt", set->dt)
               && (set->use_steps ? psys__add_num(root, "steps", (double)set->steps) != NULL
                                  : psys__add_num(root, "duration", set->duration) != NULL)
-              && psys__add_num(root, "tolerance", set->tolerance) && add_particles(sys, root);
+              && psys__add_num(root, "tolerance", set->tolerance)
+              && ((set->cg_tolerance == 1e-6 && set->cg_max_iterations == 1000)
+                  || (psys__add_num(root, "cg_tolerance", set->cg_tolerance)
+                      && psys__add_num(root, "cg_max_iterations", (double)set->cg_max_iterations)))
+              && add_particles(sys, root);
     if (!ok) {
         cJSON_Delete(root);
         psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");

@@ -6,7 +6,8 @@
 #include <string.h>
 
 static const psys__solver_class *const registry[] = {
-    &psys__euler, &psys__midpoint, &psys__rk4, &psys__symplectic_euler, &psys__verlet, &psys__rk45, NULL,
+    &psys__euler,  &psys__midpoint, &psys__rk4, &psys__symplectic_euler, &psys__verlet, &psys__rk45,
+    &psys__implicit_euler, NULL,
 };
 
 size_t psys_solver_count(void) { return sizeof registry / sizeof registry[0] - 1; }
@@ -48,12 +49,19 @@ psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_erro
     s->ode = *ode;
     s->n = ode->size;
     s->tol = 1e-6;
+    s->cg_tol = 1e-6;
+    s->cg_maxit = 1000;
     for (int i = 0; i < cls->nbuf; i++)
         if (!(s->buf[i] = psys__calloc(s->n, sizeof(double)))) {
             psys_solver_destroy(s);
             psys__fail(err, PSYS_ERR_NOMEM, "out of memory creating a solver");
             return NULL;
         }
+    if (cls->init && cls->init(s) != PSYS_OK) {
+        psys__fail(err, s->err.code, "%s", s->err.message);
+        psys_solver_destroy(s);
+        return NULL;
+    }
     psys__ok(err);
     return s;
 }
@@ -62,6 +70,8 @@ void psys_solver_destroy(psys_solver *s)
 {
     if (!s)
         return;
+    if (s->cls->fini)
+        s->cls->fini(s);
     for (int i = 0; i < PSYS__MAX_BUFS; i++)
         free(s->buf[i]);
     free(s);
@@ -74,6 +84,18 @@ size_t psys_solver_bad_component(const psys_solver *s) { return s->bad; }
 const char *psys_solver_last_error(const psys_solver *s) { return s->err.message; }
 double psys_solver_next_step(const psys_solver *s) { return s->cls->adaptive ? s->h_next : 0.0; }
 size_t psys_solver_rejected_steps(const psys_solver *s) { return s->rejected; }
+size_t psys_solver_cg_unconverged(const psys_solver *s) { return s->cg_unconverged; }
+double psys_solver_cg_worst_residual(const psys_solver *s) { return s->cg_worst; }
+size_t psys_solver_cg_iterations(const psys_solver *s) { return s->cg_iterations; }
+
+psys_status psys_solver_set_cg(psys_solver *s, double tolerance, int max_iterations)
+{
+    if (!(tolerance > 0) || !isfinite(tolerance) || max_iterations < 1)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "CG tolerance must be > 0 and the iteration cap >= 1");
+    s->cg_tol = tolerance;
+    s->cg_maxit = max_iterations;
+    return PSYS_OK;
+}
 
 psys_status psys_solver_set_tolerance(psys_solver *s, double tol)
 {

@@ -27,6 +27,12 @@ struct psys_solver {
     size_t rejected;
     size_t bad;
     psys_error err;
+    /* implicit solvers */
+    void *impl;               /* solver-kind state (e.g. the sparse matrix) */
+    double cg_tol;
+    int cg_maxit;
+    size_t cg_unconverged, cg_iterations;
+    double cg_worst;
 };
 
 struct psys__solver_class {
@@ -37,10 +43,12 @@ struct psys__solver_class {
     int nbuf;                    /* scratch vectors needed */
     const psys__tableau *tab;    /* for Runge–Kutta kinds */
     psys_status (*step)(psys_solver *s, double h_max, double *h_taken);
+    psys_status (*init)(psys_solver *s); /* optional: allocate s->impl */
+    void (*fini)(psys_solver *s);        /* optional: free s->impl */
 };
 
 extern const psys__solver_class psys__euler, psys__midpoint, psys__rk4, psys__rk45;
-extern const psys__solver_class psys__symplectic_euler, psys__verlet;
+extern const psys__solver_class psys__symplectic_euler, psys__verlet, psys__implicit_euler;
 
 /** Project y1 at t1, check it is finite, then set_state(y1) and set_time(t1). */
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);

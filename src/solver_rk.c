@@ -153,7 +153,7 @@ static psys_status rk_adaptive_step(psys_solver *s, double h_max, double *h_take
     }
 }
 
-const psys__solver_class psys__euler = {"euler", 1, false, false, K0 + 1, &euler_tab, rk_fixed_step};
-const psys__solver_class psys__midpoint = {"midpoint", 2, false, false, K0 + 2, &midpoint_tab, rk_fixed_step};
-const psys__solver_class psys__rk4 = {"rk4", 4, false, false, K0 + 4, &rk4_tab, rk_fixed_step};
-const psys__solver_class psys__rk45 = {"rk45", 5, true, false, K0 + 7, &dopri5_tab, rk_adaptive_step};
+const psys__solver_class psys__euler = {.name = "euler", .order = 1, .adaptive = false, .second_order_only = false, .nbuf = K0 + 1, .tab = &euler_tab, .step = rk_fixed_step};
+const psys__solver_class psys__midpoint = {.name = "midpoint", .order = 2, .adaptive = false, .second_order_only = false, .nbuf = K0 + 2, .tab = &midpoint_tab, .step = rk_fixed_step};
+const psys__solver_class psys__rk4 = {.name = "rk4", .order = 4, .adaptive = false, .second_order_only = false, .nbuf = K0 + 4, .tab = &rk4_tab, .step = rk_fixed_step};
+const psys__solver_class psys__rk45 = {.name = "rk45", .order = 5, .adaptive = true, .second_order_only = false, .nbuf = K0 + 7, .tab = &dopri5_tab, .step = rk_adaptive_step};

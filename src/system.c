@@ -360,6 +360,27 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     return PSYS_OK;
 }
 
+/* Implicit-solver view: masses (0 for particles the solver must not move). */
+static void ode_mass(void *ctx, double *m)
+{
+    const psys_system *s = ctx;
+    size_t d = (size_t)s->dim;
+    for (size_t i = 0; i < s->n; i++)
+        for (size_t k = 0; k < d; k++)
+            m[i * d + k] = (s->flags[i] & PSYS_PARTICLE_NOT_FREE) ? 0.0 : s->mass[i];
+}
+
+static psys_status ode_jacobian(void *ctx, double t, const double *y, psys_jacobian *J)
+{
+    const psys_system *s = ctx;
+    psys_force_eval e;
+    psys__sys_eval(s, t, y, y + s->n * (size_t)s->dim, &e);
+    for (size_t i = 0; i < s->nforces; i++)
+        if (s->forces[i].cls->jacobian)
+            s->forces[i].cls->jacobian(s->forces[i].data, &e, J);
+    return PSYS_OK;
+}
+
 psys_ode psys_system_ode(psys_system *s)
 {
     psys_ode o;
@@ -373,6 +394,9 @@ psys_ode psys_system_ode(psys_system *s)
     o.set_time = ode_set_time;
     o.derivative = ode_derivative;
     o.project = ode_project;
+    o.mass = ode_mass;
+    o.jacobian = ode_jacobian;
+    o.block = s->dim;
     return o;
 }
 
@@ -444,10 +468,12 @@ void psys_jacobian_add(psys_jacobian *J, size_t i, size_t j, const double *dfdx,
     J->add(J, i, j, dfdx, dfdv);
 }
 
+bool psys_jacobian_wants_definite(const psys_jacobian *J) { return J->definite; }
+
 psys_status psys_system_dense_jacobian(psys_system *s, double *dfdx, double *dfdv)
 {
     size_t nd = s->n * (size_t)s->dim;
-    dense_sink ds = {{dense_add, NULL}, nd, s->dim, dfdx, dfdv};
+    dense_sink ds = {{dense_add, NULL, false}, nd, s->dim, dfdx, dfdv};
     memset(dfdx, 0, nd * nd * sizeof(double));
     memset(dfdv, 0, nd * nd * sizeof(double));
     psys_force_eval e;

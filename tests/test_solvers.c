@@ -86,12 +86,15 @@ static psys_ode custom_ode(custom *c, size_t npos)
 static void registry(void)
 {
     static const int orders[NSOLVERS] = {1, 2, 4, 1, 2, 5};
-    CHECK(psys_solver_count() == 6);
+    /* The six explicit solvers, then implicit-euler (which needs masses and
+     * Jacobians, so it is tested with particle systems in test_implicit). */
+    CHECK(psys_solver_count() == 7);
     for (size_t i = 0; i < NSOLVERS; i++) {
         CHECK_STR(psys_solver_name_at(i), all_solvers[i]);
         CHECK(psys_solver_exists(all_solvers[i]));
     }
-    CHECK(psys_solver_name_at(6) == NULL);
+    CHECK_STR(psys_solver_name_at(6), "implicit-euler");
+    CHECK(psys_solver_name_at(7) == NULL);
     CHECK(!psys_solver_exists("rk5"));
     CHECK(!psys_solver_exists(""));
     CHECK(!psys_solver_exists(NULL));
@@ -109,6 +112,9 @@ static void registry(void)
     }
 
     psys_error err;
+    memset(&err, 0, sizeof err);
+    CHECK(psys_solver_create("implicit-euler", &ode, &err) == NULL); /* no masses or Jacobians offered */
+    CHECK(err.code == PSYS_ERR_INVALID);
     memset(&err, 0, sizeof err);
     CHECK(psys_solver_create("runge-kutta", &ode, &err) == NULL);
     CHECK(err.code == PSYS_ERR_INVALID);

@@ -342,6 +342,11 @@ int cmd_run(int argc, char **argv)
         io_failed |= write_frame(&out, sys, psys_run_step_index(run));
     if (status == EXIT_RUN_FAILED)
         cli_error("%s: %s", source, err.message);
+    const psys_solver *solver = psys_run_solver(run);
+    if (psys_solver_cg_unconverged(solver) && !o.quiet)
+        cli_error("%s: warning: conjugate gradient stopped short of cg_tolerance in %zu steps (worst relative "
+                  "residual %.3g); raise cg_max_iterations or lower dt",
+                  source, psys_solver_cg_unconverged(solver), psys_solver_cg_worst_residual(solver));
     if (io_failed)
         cli_error("cannot write the output files (disk full?)");
     int rc = outfile_commit(&out.traj);

@@ -48,6 +48,8 @@ const char *psys_status_name(psys_status s);
 /* clock. Solvers know nothing else about the system they step.        */
 /* ------------------------------------------------------------------ */
 
+struct psys_jacobian;
+
 /** A first-order ODE y' = f(t, y) of fixed size, seen by solvers. */
 typedef struct psys_ode {
     size_t size;  /**< length of the state vector */
@@ -69,6 +71,14 @@ typedef struct psys_ode {
      *  their values at time t (controlled particles, ERRATA). Solvers call it
      *  on every stage state before evaluating the derivative. */
     void (*project)(void *ctx, double t, double *y);
+    /** Optional, for implicit solvers of second-order systems (NULL if not
+     *  offered): the mass of each position component (npos numbers; 0 marks a
+     *  prescribed component the solver must not change). */
+    void (*mass)(void *ctx, double *m);
+    /** Optional: emit ∂f/∂x, ∂f/∂v blocks (block × block, block = `block`) of
+     *  the forces at (t, y) into J. Forces that cannot are treated explicitly. */
+    psys_status (*jacobian)(void *ctx, double t, const double *y, struct psys_jacobian *J);
+    int block;    /**< block size of jacobian (the dimension) */
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
@@ -115,6 +125,15 @@ double psys_solver_next_step(const psys_solver *s);
 psys_status psys_solver_set_next_step(psys_solver *s, double h);
 /** Steps rejected by error control so far (adaptive solvers). */
 size_t psys_solver_rejected_steps(const psys_solver *s);
+/** Conjugate-gradient settings of implicit solvers: relative residual
+ *  tolerance and iteration cap per step. */
+psys_status psys_solver_set_cg(psys_solver *s, double tolerance, int max_iterations);
+/** Steps whose conjugate-gradient solve stopped before reaching its tolerance. */
+size_t psys_solver_cg_unconverged(const psys_solver *s);
+/** Largest relative residual left by an unconverged solve (0 if none). */
+double psys_solver_cg_worst_residual(const psys_solver *s);
+/** Total conjugate-gradient iterations so far. */
+size_t psys_solver_cg_iterations(const psys_solver *s);
 
 /* ------------------------------------------------------------------ */
 /* Particle system                                                     */
@@ -144,6 +163,11 @@ typedef struct psys_force_eval {
 
 /** Sink for force Jacobian blocks (see psys_jacobian_add). */
 typedef struct psys_jacobian psys_jacobian;
+
+/** True when the sink asks for a positive-definite approximation (implicit
+ *  solvers): force classes then drop stiffness terms that can make -∂f/∂x
+ *  indefinite (springs under compression) or non-symmetric (damping in ∂f/∂x). */
+bool psys_jacobian_wants_definite(const psys_jacobian *J);
 
 /** Add dim×dim row-major blocks ∂f_i/∂x_j and ∂f_i/∂v_j (either may be NULL). */
 void psys_jacobian_add(psys_jacobian *J, size_t i, size_t j,
@@ -557,6 +581,8 @@ typedef struct psys_settings {
     char trajectory[1024]; /**< output.trajectory ("" for none) */
     char energy[1024];     /**< output.energy ("" for none) */
     char render[1024];     /**< output.render ("" for none) */
+    double cg_tolerance;   /**< implicit-euler: relative CG residual per step */
+    long long cg_max_iterations; /**< implicit-euler: CG iteration cap per step */
 } psys_settings;
 
 /** Clock and solver state saved in a checkpoint. */

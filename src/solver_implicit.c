@@ -1,0 +1,369 @@
+/* implicit-euler: linearised backward Euler of Baraff & Witkin, "Large
+ * steps in cloth simulation" (SIGGRAPH 1998), for y = [x | v]:
+ *
+ *   (M - h ∂f/∂v - h² ∂f/∂x) Δv = h (f0 + h ∂f/∂x v0),  v1 = v0 + Δv,  x1 = x0 + h v1
+ *
+ * solved by conjugate gradient on a block-sparse
+ * matrix (block = dimension), preconditioned with the inverse diagonal blocks
+ * (block Jacobi). Prescribed components (mass 0: fixed and
+ * controlled particles) are filtered out of the solve, as in the paper.
+ * The sparsity pattern is built on the first step and reused; it is rebuilt
+ * (the only allocation) only when a force reports a new pair of particles.
+ * Forces without Jacobians enter through f0 only (treated explicitly). */
+#include "solver.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { Y0, YDOT, Y1, M_, B_, DV, R_, Z_, P_, Q_, KV, NBUF };
+
+typedef struct bsr {
+    size_t nb;         /* block rows */
+    int bs;            /* block size */
+    size_t *row;       /* nb + 1 */
+    size_t *col;       /* nnz blocks, sorted within each row */
+    double *val;       /* nnz × bs² */
+    size_t nnz;
+    /* pairs seen during an assembly that the pattern lacked */
+    size_t *miss;      /* pairs (i, j) flattened */
+    size_t nmiss, miss_cap;
+    double *pinv;      /* nb × bs²: inverse diagonal blocks (block-Jacobi preconditioner) */
+    /* assembly context */
+    double h;
+    const double *v0;
+    double *kv;
+} bsr;
+
+static void bsr_free(bsr *m)
+{
+    if (!m)
+        return;
+    free(m->row);
+    free(m->col);
+    free(m->val);
+    free(m->miss);
+    free(m->pinv);
+    free(m);
+}
+
+static long bsr_find(const bsr *m, size_t i, size_t j)
+{
+    size_t lo = m->row[i], hi = m->row[i + 1];
+    while (lo < hi) {
+        size_t mid = (lo + hi) / 2;
+        if (m->col[mid] < j)
+            lo = mid + 1;
+        else if (m->col[mid] > j)
+            hi = mid;
+        else
+            return (long)mid;
+    }
+    return -1;
+}
+
+static void note_miss(bsr *m, size_t i, size_t j)
+{
+    if (m->nmiss == m->miss_cap) {
+        size_t cap = m->miss_cap ? 2 * m->miss_cap : 1024;
+        size_t *p = psys__realloc(m->miss, cap, 2 * sizeof(size_t));
+        if (!p)
+            return; /* the rebuild below then fails cleanly as out of memory */
+        m->miss = p;
+        m->miss_cap = cap;
+    }
+    m->miss[2 * m->nmiss] = i;
+    m->miss[2 * m->nmiss + 1] = j;
+    m->nmiss++;
+}
+
+/* Sink: A += -h ∂f/∂v - h² ∂f/∂x, symmetrised (½B at (i,j), ½Bᵀ at (j,i)),
+ * and kv_i += (∂f/∂x)_ij v0_j for the right-hand side. */
+static void assemble_add(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv)
+{
+    bsr *m = J->ctx;
+    int b = m->bs;
+    if (dfdx)
+        for (int r = 0; r < b; r++)
+            for (int c = 0; c < b; c++)
+                m->kv[i * b + r] += dfdx[r * b + c] * m->v0[j * b + c];
+    long ij = bsr_find(m, i, j), ji = bsr_find(m, j, i);
+    if (ij < 0 || ji < 0) {
+        if (ij < 0)
+            note_miss(m, i, j);
+        if (ji < 0)
+            note_miss(m, j, i);
+        return;
+    }
+    double h = m->h, h2 = h * h;
+    double *aij = m->val + (size_t)ij * b * b, *aji = m->val + (size_t)ji * b * b;
+    for (int r = 0; r < b; r++)
+        for (int c = 0; c < b; c++) {
+            double e = -h2 * (dfdx ? dfdx[r * b + c] : 0.0) - h * (dfdv ? dfdv[r * b + c] : 0.0);
+            aij[r * b + c] += 0.5 * e;
+            aji[c * b + r] += 0.5 * e;
+        }
+}
+
+static int cmp_pair(const void *a, const void *b)
+{
+    const size_t *p = a, *q = b;
+    if (p[0] != q[0])
+        return p[0] < q[0] ? -1 : 1;
+    return p[1] < q[1] ? -1 : p[1] > q[1];
+}
+
+/* New pattern = old pattern ∪ missed pairs ∪ diagonal. */
+static psys_status bsr_rebuild(bsr *m)
+{
+    size_t total = m->nnz + m->nmiss + m->nb;
+    size_t *pairs = psys__calloc(total, 2 * sizeof(size_t));
+    if (!pairs)
+        return PSYS_ERR_NOMEM;
+    size_t k = 0;
+    for (size_t i = 0; i < m->nb; i++) {
+        pairs[2 * k] = pairs[2 * k + 1] = i;
+        k++;
+        for (size_t q = m->row[i]; q < m->row[i + 1]; q++) {
+            pairs[2 * k] = i;
+            pairs[2 * k + 1] = m->col[q];
+            k++;
+        }
+    }
+    memcpy(pairs + 2 * k, m->miss, m->nmiss * 2 * sizeof(size_t));
+    k += m->nmiss;
+    qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
+    size_t u = 0;
+    for (size_t q = 0; q < k; q++)
+        if (u == 0 || cmp_pair(pairs + 2 * q, pairs + 2 * (u - 1)) != 0) {
+            pairs[2 * u] = pairs[2 * q];
+            pairs[2 * u + 1] = pairs[2 * q + 1];
+            u++;
+        }
+    size_t *col = psys__calloc(u, sizeof(size_t));
+    double *val = psys__calloc(u * (size_t)m->bs * m->bs, sizeof(double));
+    if (!col || !val) {
+        free(pairs);
+        free(col);
+        free(val);
+        return PSYS_ERR_NOMEM;
+    }
+    memset(m->row, 0, (m->nb + 1) * sizeof(size_t));
+    for (size_t q = 0; q < u; q++) {
+        m->row[pairs[2 * q] + 1]++;
+        col[q] = pairs[2 * q + 1];
+    }
+    for (size_t i = 0; i < m->nb; i++)
+        m->row[i + 1] += m->row[i];
+    free(pairs);
+    free(m->col);
+    free(m->val);
+    m->col = col;
+    m->val = val;
+    m->nnz = u;
+    m->nmiss = 0;
+    return PSYS_OK;
+}
+
+static psys_status implicit_init(psys_solver *s)
+{
+    const psys_ode *o = &s->ode;
+    if (!o->mass || !o->jacobian || o->block < 1 || o->npos % (size_t)o->block != 0)
+        return psys__fail(&s->err, PSYS_ERR_INVALID,
+                          "implicit-euler needs an ODE that offers masses and force Jacobians");
+    bsr *m = calloc(1, sizeof *m);
+    if (!m || !(m->row = psys__calloc(o->npos / (size_t)o->block + 1, sizeof(size_t)))
+        || !(m->pinv = psys__calloc(o->npos, (size_t)o->block * sizeof(double)))) {
+        bsr_free(m);
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory creating implicit-euler");
+    }
+    m->bs = o->block;
+    m->nb = o->npos / (size_t)o->block;
+    s->impl = m;
+    return PSYS_OK;
+}
+
+static void implicit_fini(psys_solver *s) { bsr_free(s->impl); }
+
+/* Assemble A and K v0 at (t, y0); rebuild the pattern when a force reports a
+ * pair it lacks (first step, or changed topology) and assemble again. */
+static psys_status assemble(psys_solver *s, bsr *m, double t, const double *y0, double h, double *kv)
+{
+    size_t np = s->ode.npos;
+    psys_jacobian J = {assemble_add, m, true};
+    m->h = h;
+    m->v0 = y0 + np;
+    m->kv = kv;
+    for (int attempt = 0; attempt < 2; attempt++) {
+        memset(m->val, 0, m->nnz * (size_t)m->bs * m->bs * sizeof(double));
+        memset(kv, 0, np * sizeof(double));
+        m->nmiss = 0;
+        psys_status st = s->ode.jacobian(s->ode.ctx, t, y0, &J);
+        if (st != PSYS_OK)
+            return psys__fail(&s->err, st, "the force Jacobians could not be evaluated");
+        if (m->nmiss == 0 && m->nnz > 0)
+            return PSYS_OK;
+        if (bsr_rebuild(m) != PSYS_OK)
+            return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory building the implicit-euler matrix");
+    }
+    return m->nmiss == 0 ? PSYS_OK
+                         : psys__fail(&s->err, PSYS_ERR_NOMEM, "the implicit-euler matrix pattern did not settle");
+}
+
+/* q = S (M + A) p, S zeroing prescribed components. */
+static void apply_matrix(const bsr *m, const double *mass, const double *p, double *q)
+{
+    int b = m->bs;
+    for (size_t i = 0; i < m->nb; i++) {
+        double acc[3] = {0, 0, 0};
+        for (size_t e = m->row[i]; e < m->row[i + 1]; e++) {
+            const double *blk = m->val + e * (size_t)b * b, *pj = p + m->col[e] * b;
+            for (int r = 0; r < b; r++)
+                for (int c = 0; c < b; c++)
+                    acc[r] += blk[r * b + c] * pj[c];
+        }
+        for (int r = 0; r < b; r++) {
+            size_t k = i * b + r;
+            q[k] = mass[k] > 0 ? mass[k] * p[k] + acc[r] : 0.0;
+        }
+    }
+}
+
+/* Inverse of the symmetric positive-definite b×b block a (b ≤ 3) into out;
+ * zero if the block is singular or filtered. */
+static void invert_block(const double *a, int b, double *out)
+{
+    memset(out, 0, sizeof(double) * (size_t)b * b);
+    if (b == 2) {
+        double det = a[0] * a[3] - a[1] * a[2];
+        if (!(det > 0))
+            return;
+        out[0] = a[3] / det;
+        out[1] = -a[1] / det;
+        out[2] = -a[2] / det;
+        out[3] = a[0] / det;
+        return;
+    }
+    double c00 = a[4] * a[8] - a[5] * a[7], c01 = a[5] * a[6] - a[3] * a[8], c02 = a[3] * a[7] - a[4] * a[6];
+    double det = a[0] * c00 + a[1] * c01 + a[2] * c02;
+    if (!(det > 0))
+        return;
+    out[0] = c00 / det;
+    out[1] = (a[2] * a[7] - a[1] * a[8]) / det;
+    out[2] = (a[1] * a[5] - a[2] * a[4]) / det;
+    out[3] = c01 / det;
+    out[4] = (a[0] * a[8] - a[2] * a[6]) / det;
+    out[5] = (a[2] * a[3] - a[0] * a[5]) / det;
+    out[6] = c02 / det;
+    out[7] = (a[1] * a[6] - a[0] * a[7]) / det;
+    out[8] = (a[0] * a[4] - a[1] * a[3]) / det;
+}
+
+/* z = P r with the block-Jacobi preconditioner. */
+static void precondition(const bsr *m, const double *r, double *z)
+{
+    int b = m->bs;
+    for (size_t i = 0; i < m->nb; i++) {
+        const double *pi = m->pinv + i * (size_t)b * b, *ri = r + i * b;
+        for (int row = 0; row < b; row++) {
+            double acc = 0;
+            for (int c = 0; c < b; c++)
+                acc += pi[row * b + c] * ri[c];
+            z[i * b + row] = acc;
+        }
+    }
+}
+
+static double dot(const double *a, const double *b, size_t n)
+{
+    double s = 0;
+    for (size_t i = 0; i < n; i++)
+        s += a[i] * b[i];
+    return s;
+}
+
+static psys_status implicit_step(psys_solver *s, double h, double *h_taken)
+{
+    bsr *m = s->impl;
+    size_t np = s->ode.npos;
+    int b = m->bs;
+    double *y0 = s->buf[Y0], *ydot = s->buf[YDOT], *y1 = s->buf[Y1];
+    double *mass = s->buf[M_], *rhs = s->buf[B_], *dv = s->buf[DV], *r = s->buf[R_];
+    double *z = s->buf[Z_], *p = s->buf[P_], *q = s->buf[Q_], *kv = s->buf[KV];
+    double t = s->ode.get_time(s->ode.ctx);
+    s->ode.get_state(s->ode.ctx, y0);
+    psys_status st = psys__solver_eval(s, t, y0, ydot); /* projects y0 at t */
+    if (st != PSYS_OK)
+        return st;
+    s->ode.mass(s->ode.ctx, mass);
+    if ((st = assemble(s, m, t, y0, h, kv)) != PSYS_OK)
+        return st;
+    /* rhs = S h (f0 + h K v0), with f0 = m a0; Jacobi preconditioner from the diagonal. */
+    for (size_t k = 0; k < np; k++) {
+        rhs[k] = mass[k] > 0 ? h * (mass[k] * ydot[np + k] + h * kv[k]) : 0.0;
+        dv[k] = 0;
+    }
+    for (size_t i = 0; i < m->nb; i++) {
+        long e = bsr_find(m, i, i);
+        double blk[9];
+        for (int rr = 0; rr < b; rr++)
+            for (int c = 0; c < b; c++)
+                blk[rr * b + c] = (e >= 0 ? m->val[(size_t)e * b * b + rr * b + c] : 0.0)
+                                  + (rr == c ? mass[i * b + rr] : 0.0);
+        if (mass[i * b] > 0)
+            invert_block(blk, b, m->pinv + i * (size_t)b * b);
+        else
+            memset(m->pinv + i * (size_t)b * b, 0, sizeof(double) * (size_t)b * b);
+    }
+    /* Preconditioned conjugate gradient from Δv = 0 on the filtered system. */
+    double bnorm = sqrt(dot(rhs, rhs, np));
+    memcpy(r, rhs, np * sizeof(double));
+    precondition(m, r, z);
+    memcpy(p, z, np * sizeof(double));
+    double rz = dot(r, z, np), res = bnorm;
+    int it = 0;
+    while (bnorm > 0 && res > s->cg_tol * bnorm && it < s->cg_maxit) {
+        apply_matrix(m, mass, p, q);
+        double pq = dot(p, q, np);
+        if (!(pq > 0))
+            break; /* not positive definite along p: keep the best iterate */
+        double alpha = rz / pq;
+        for (size_t k = 0; k < np; k++) {
+            dv[k] += alpha * p[k];
+            r[k] -= alpha * q[k];
+        }
+        res = sqrt(dot(r, r, np));
+        it++;
+        precondition(m, r, z);
+        double rz_new = dot(r, z, np);
+        double beta = rz_new / rz;
+        rz = rz_new;
+        for (size_t k = 0; k < np; k++)
+            p[k] = z[k] + beta * p[k];
+    }
+    s->cg_iterations += (size_t)it;
+    if (bnorm > 0 && res > s->cg_tol * bnorm) {
+        s->cg_unconverged++;
+        if (res / bnorm > s->cg_worst)
+            s->cg_worst = res / bnorm;
+    }
+    for (size_t k = 0; k < np; k++) {
+        double v1 = y0[np + k] + dv[k];
+        y1[np + k] = v1;
+        y1[k] = y0[k] + h * v1;
+    }
+    *h_taken = h;
+    return psys__solver_commit(s, y1, t + h);
+}
+
+const psys__solver_class psys__implicit_euler = {
+    .name = "implicit-euler",
+    .order = 1,
+    .adaptive = false,
+    .second_order_only = true,
+    .nbuf = NBUF,
+    .tab = NULL,
+    .step = implicit_step,
+    .init = implicit_init,
+    .fini = implicit_fini,
+};
