@@ -1223,7 +1223,7 @@ static void test_scene_bad_inputs(void)
               "particles[0].control.frames: must be a non-empty array of frames [t, x...] (got [])");
     CHECK_STR(load_error(P2 "{\"x\":[0,0],\"control\":{\"type\":\"circle\",\"center\":[0,0],\"radius\":1,"
                             "\"omega\":1,\"axis\":[0,0,1]}}]}"),
-              "particles[0].control.axis: only exists in 3-D (got [0,0,1])");
+              "particles[0].control.axis: is only used in 3-D scenes (dim is 2) (got [0,0,1])");
     /* mouse springs: exactly one of target and path */
     CHECK_STR(load_error(P2 "{\"x\":[0,0]}],\"forces\":[{\"type\":\"mouse-spring\",\"particle\":0,\"ks\":1,"
                             "\"target\":[0,0],\"path\":[[0,0,0]]}]}"),

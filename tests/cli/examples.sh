@@ -159,7 +159,9 @@ test_claims() {
   # bouncing-balls: restitution 0.8 makes each apex 0.64 of the one before
   # (1 m dropped: 0.64, 0.4096, 0.262144 m); the dropped ball is at rest on the
   # floor by t = 4.5 s (the bounces add up to 4.06 s); the thrown ball then
-  # slides with v(t) ∝ exp(-k_f g t), k_f = 0.2; no ball is ever behind a plane.
+  # slides with v(t) ∝ exp(-k_f g t), k_f = 0.2; the ball dropped on the 30°
+  # slope (friction k_f = 2) ends up sliding down it at the steady speed
+  # tan 30° / k_f = 0.288675 m/s; no ball is ever behind a plane.
   "$psys" run "$ex/bouncing-balls.json" --every 1 --out balls.csv --quiet
   local apexes
   apexes=$(awk -F, 'NR > 1 && $3 == 0 { y = $5; if (c > 1 && py > ppy && py >= y && n < 3) { printf "%.5f ", py; n++ }
@@ -169,11 +171,134 @@ test_claims() {
   rest=$(awk -F, 'NR > 1 && $3 == 0 && $2 >= 4.5 && ($5 != 0 || $6 != 0 || $7 != 0) { n++ } END { print n + 0 }' balls.csv)
   [ "$rest" = 0 ] || fail "bouncing-balls: the dropped ball is not at rest after t = 4.5 s ($rest frames)"
   local ratio
-  ratio=$(awk -F, 'NR > 1 && $3 == 1 && $2 == 4.5 { a = $6 } NR > 1 && $3 == 1 && $2 == 5 { b = $6 } END { print b / a }' balls.csv)
-  near "$ratio" "$(awk 'BEGIN { print exp(-0.2 * 9.81 * 0.5) }')" 1e-3 "bouncing-balls: friction slow-down over 0.5 s"
+  ratio=$(awk -F, 'NR > 1 && $3 == 1 && $2 == 4 { a = $6 } NR > 1 && $3 == 1 && $2 == 5 { b = $6 } END { print b / a }' balls.csv)
+  near "$ratio" "$(awk 'BEGIN { print exp(-0.2 * 9.81 * 1) }')" 1e-3 "bouncing-balls: friction slow-down of the thrown ball over 1 s"
+  local slide
+  slide=$(awk -F, 'NR > 1 && $3 == 3 && $2 >= 3 && $2 <= 6 {
+      d = -0.5 * ($4 - 1) + 0.86602540378443865 * $5; if (d > 1e-9 || d < -1e-9) off++
+      e = sqrt($6 * $6 + $7 * $7) - sqrt(1 / 3) / 2; if (e < 0) e = -e; if (e > w) w = e }
+    END { print (off ? 1 : w + 0) }' balls.csv)
+  near "$slide" 0 1e-4 "bouncing-balls: the slider's speed on the slope differs from tan 30°/k_f (or it left the slope)"
   local behind
-  behind=$(awk -F, 'NR > 1 && ($5 < 0 || $4 < -1 || $4 > 1) { n++ } END { print n + 0 }' balls.csv)
+  behind=$(awk -F, 'NR > 1 && ($5 < 0 || $4 < -1 || -0.5 * ($4 - 1) + 0.86602540378443865 * $5 < -1e-9) { n++ } END { print n + 0 }' balls.csv)
   [ "$behind" = 0 ] || fail "bouncing-balls: $behind rows behind a plane"
+
+  # double-pendulum: undamped stiff springs, so rk4 keeps the energy, 20.81 J,
+  # within 1e-4 J; the motion is chaotic: moving the lower bob's start by
+  # 1 µm changes nothing visible for the first second, yet puts it more than
+  # 0.3 m away from the original run at some time between t = 8 and 10 s.
+  "$psys" run "$ex/double-pendulum.json" --out dp.csv --energy dp-e.csv --quiet
+  drift=$(awk -F, 'NR == 2 { e0 = $5 } NR > 1 { d = $5 - e0; if (d < 0) d = -d; if (d > w) w = d } END { print w + 0 }' dp-e.csv)
+  near "$drift" 0 1e-4 "double-pendulum: energy drift"
+  sed 's/"x": \[1.4142135623730951, 1.4142135623730951\]/"x": [1.4142135623730951, 1.4142145623730951]/' \
+    "$ex/double-pendulum.json" > dp-nudged.json
+  if cmp -s dp-nudged.json "$ex/double-pendulum.json"; then
+    fail "double-pendulum: could not nudge the lower bob (its start changed?)"
+  else
+    "$psys" run dp-nudged.json --out dp2.csv --quiet
+    local early late
+    read -r early late < <(paste -d, dp.csv dp2.csv | awk -F, 'NR > 1 && $3 == 2 {
+        d = sqrt(($4 - $11) ^ 2 + ($5 - $12) ^ 2)
+        if ($2 <= 1 && d > e) e = d; if ($2 >= 8 && d > l) l = d }
+      END { print e + 0, l + 0 }')
+    near "$early" 0 1e-5 "double-pendulum: nudged run separated during the first second"
+    awk -v l="$late" 'BEGIN { exit !(l > 0.3) }' || fail "double-pendulum: nudged run only $late m away at t = 8..10 s (not chaotic?)"
+  fi
+
+  # hanging-cloth: after 5 s the 20×20 sheet hangs still (kinetic energy below
+  # 1e-3 J) from its two pinned corners, mirror-symmetric to round-off, its
+  # bottom edge 0.981 m below the pins (0.95 m of cloth stretched by its
+  # weight) and the middle of its top edge sagging 0.072 m between the pins.
+  "$psys" run "$ex/hanging-cloth.json" --out cloth.csv --energy cloth-e.csv --quiet
+  ke=$(tail -n 1 cloth-e.csv | cut -d, -f3)
+  awk -v k="$ke" 'BEGIN { exit !(k < 1e-3) }' || fail "hanging-cloth: kinetic energy $ke J at the end"
+  local bottom topmid asym
+  read -r bottom topmid asym < <(awk -F, 'NR > 1 && $1 == 5000 { x[$3] = $4; y[$3] = $5 }
+    END { for (j = 0; j < 20; j++) for (i = 0; i < 20; i++) { a = i + 20 * j; b = 19 - i + 20 * j
+            d = x[a] + x[b] - 0.95; if (d < 0) d = -d; if (d > m) m = d
+            d = y[a] - y[b]; if (d < 0) d = -d; if (d > m) m = d }
+          print -y[390], -y[10], m + 0 }' cloth.csv)
+  near "$bottom" 0.981 0.002 "hanging-cloth: depth of the bottom edge"
+  near "$topmid" 0.072 0.002 "hanging-cloth: sag of the top edge"
+  near "$asym" 0 1e-9 "hanging-cloth: departure from mirror symmetry"
+
+  # rope-bridge: once settled, the two anchors together hold the weight of the
+  # free rope and the crate, (19 · 0.5 + 5) kg · 9.81 = 142.245 N, and the
+  # horizontal pull (51.7 N) is the same in every segment, crate or not.
+  "$psys" run "$ex/rope-bridge.json" --out bridge.csv --quiet
+  local vsum hmin hmax
+  read -r vsum hmin hmax < <(awk -F, 'NR > 1 && $1 == 20000 { x[$3] = $4; y[$3] = $5 }
+    END { n = 0; for (i = 1; i <= 11; i++) o[n++] = i; for (i = 21; i >= 12; i--) o[n++] = i
+          hmin = 1e300; hmax = -1e300
+          for (k = 0; k + 1 < n; k++) { dx = x[o[k + 1]] - x[o[k]]; dy = y[o[k + 1]] - y[o[k]]; l = sqrt(dx * dx + dy * dy)
+            T = 20000 * (l - 0.25); h = T * dx / l; if (h < hmin) hmin = h; if (h > hmax) hmax = h
+            if (k == 0) v0 = -T * dy / l; if (k + 2 == n) v1 = T * dy / l }
+          print v0 + v1, hmin, hmax }' bridge.csv)
+  near "$vsum" 142.245 0.2 "rope-bridge: vertical load on the anchors"
+  near "$hmin" 51.7 0.2 "rope-bridge: smallest horizontal pull"
+  near "$hmax" 51.7 0.2 "rope-bridge: largest horizontal pull"
+
+  # motor-mechanism: the two pistons stay within 0.2 mm of their cylinders'
+  # lines (±45° from vertical) and within 0.5 mm of the rigid crank–slider
+  # position s = c·d + sqrt(L² − r² + (c·d)²), c the crank pin, r = 0.25 m,
+  # L = 1 m, so each strokes between L − r and L + r.
+  "$psys" run "$ex/motor-mechanism.json" --out motor.csv --quiet
+  local off dev
+  read -r off dev < <(awk -F, 'NR > 1 && $3 >= 2 { th = 6.283185307179586 * $2 + 1.5707963267948966
+      cx = 0.25 * cos(th); cy = 0.25 * sin(th); h = sqrt(0.5); dx = ($3 == 2) ? -h : h; dy = h
+      cd = cx * dx + cy * dy; s = cd + sqrt(1 - 0.0625 + cd * cd)
+      o = $4 * dy - $5 * dx; if (o < 0) o = -o; if (o > mo) mo = o
+      d = $4 * dx + $5 * dy - s; if (d < 0) d = -d; if (d > md) md = d }
+    END { print mo + 0, md + 0 }' motor.csv)
+  near "$off" 0 2e-4 "motor-mechanism: piston off its line"
+  near "$dev" 0 5e-4 "motor-mechanism: piston off the rigid crank-slider position"
+
+  # worm: with backward_friction 30 against forward 0.3 the muscle wave makes
+  # the worm crawl +x at 0.420 m/s (centre of mass, whole muscle cycles from
+  # the 2nd to the 12th), never leaving the floor; with the same friction
+  # both ways it only pulses in place.
+  "$psys" run "$ex/worm.json" --every 1 --out worm.csv --quiet
+  local speed lifted
+  read -r speed lifted < <(awk -F, 'NR > 1 { sx[$1] += $4; if ($5 != 0) up++ }
+    END { T = 2 * 3.141592653589793 / 8; a = int(2 * T * 1000 + 0.5); b = int(12 * T * 1000 + 0.5)
+          print (sx[b] - sx[a]) / 11 / (10 * T), up + 0 }' worm.csv)
+  near "$speed" 0.420 0.005 "worm: crawling speed"
+  [ "$lifted" = 0 ] || fail "worm: $lifted rows off the floor"
+  grep -v '"forward"' "$ex/worm.json" | sed 's/"friction": 0.3,$/"friction": 0.3}/' > worm-iso.json
+  "$psys" run worm-iso.json --every 1000 --out worm-iso.csv --quiet
+  speed=$(awk -F, 'NR > 1 { sx[$1] += $4 } END { print (sx[10000] - sx[0]) / 11 / 10 }' worm-iso.csv)
+  near "$speed" 0 0.005 "worm: speed with the same friction in every direction"
+
+  # soft-block: dropped tilted, it bounces, tumbles and settles flat: after
+  # 4 s its 25 bottom particles rest exactly on the floor, its top face is at
+  # 0.2992 m (0.3 m less 0.8 mm squashed by its weight), nothing is moving
+  # (kinetic energy below 1e-9 J) and no particle was ever below the floor.
+  "$psys" run "$ex/soft-block.json" --out block.csv --energy block-e.csv --quiet
+  local onfloor top below
+  read -r onfloor top below < <(awk -F, 'NR > 1 { if ($5 < 0) below++ }
+    NR > 1 && $1 == 4000 { if ($5 == 0) n++; if ($5 > top) top = $5 }
+    END { print n + 0, top + 0, below + 0 }' block.csv)
+  [ "$onfloor" = 25 ] || fail "soft-block: $onfloor particles on the floor at the end, expected 25"
+  near "$top" 0.2992 0.0002 "soft-block: height of the top face"
+  [ "$below" = 0 ] || fail "soft-block: $below rows below the floor"
+  ke=$(tail -n 1 block-e.csv | cut -d, -f3)
+  near "$ke" 0 1e-9 "soft-block: kinetic energy at the end"
+
+  # wheel: on the 15° non-slip slope the hub gains speed at 1.23 m/s², 95% of
+  # the 1.295 m/s² of an ideal rolling rim and hub (g sin 15° · 25/49); on the
+  # floor it rolls at about 3 m/s without slipping (ωR = hub speed within 3%).
+  "$psys" run "$ex/wheel.json" --every 20 --out wheel.csv --quiet
+  local accel slip
+  read -r accel slip < <(awk -F, 'NR > 1 { x[$1, $3] = $4; y[$1, $3] = $5; vx[$1, $3] = $6; vy[$1, $3] = $7 }
+    END { sa = vx[1000, 24] * 0.9659258262890683 - vy[1000, 24] * 0.25881904510252074
+          sb = vx[4000, 24] * 0.9659258262890683 - vy[4000, 24] * 0.25881904510252074
+          s = 7000; w = 0
+          for (i = 0; i < 24; i++) { dx = x[s, i] - x[s, 24]; dy = y[s, i] - y[s, 24]
+            w += (dx * (vy[s, i] - vy[s, 24]) - dy * (vx[s, i] - vx[s, 24])) / (dx * dx + dy * dy) }
+          w /= 24; v = sqrt(vx[s, 24] ^ 2 + vy[s, 24] ^ 2)
+          print (sb - sa) / 1.5, -w * 0.3 / v - 1 }' wheel.csv)
+  near "$accel" 1.23 0.03 "wheel: acceleration down the slope"
+  near "$slip" 0 0.03 "wheel: rolling without slipping on the floor (ωR/v - 1)"
 
   # driven-pendulum: the controlled pivot is exactly on x = 0.05 sin 3t with the
   # exact velocity 0.15 cos 3t at every frame (controllers are not integrated).
