@@ -130,7 +130,8 @@ static psys_status bsr_rebuild(bsr *m)
             k++;
         }
     }
-    memcpy(pairs + 2 * k, m->miss, m->nmiss * 2 * sizeof(size_t));
+    if (m->nmiss) /* m->miss may be NULL when no pair was missing */
+        memcpy(pairs + 2 * k, m->miss, m->nmiss * 2 * sizeof(size_t));
     k += m->nmiss;
     qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
     size_t u = 0;
@@ -195,7 +196,8 @@ static psys_status assemble(psys_solver *s, bsr *m, double t, const double *y0, 
     m->v0 = y0 + np;
     m->kv = kv;
     for (int attempt = 0; attempt < 2; attempt++) {
-        memset(m->val, 0, m->nnz * (size_t)m->bs * m->bs * sizeof(double));
+        if (m->nnz) /* m->val is NULL before the first pattern: memset(NULL, 0, 0) is undefined */
+            memset(m->val, 0, m->nnz * (size_t)m->bs * m->bs * sizeof(double));
         memset(kv, 0, np * sizeof(double));
         m->nmiss = 0;
         psys_status st = s->ode.jacobian(s->ode.ctx, t, y0, &J);

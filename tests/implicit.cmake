@@ -1,0 +1,1 @@
+psys_cli_test(implicit)
