@@ -6,7 +6,7 @@ WERROR     ?= $(if $(CI),ON,OFF)
 JOBS       ?= 2
 CMAKE_GEN  := -G Ninja
 
-.PHONY: all deps build test test-sanitize demo bench install clean
+.PHONY: all deps build test test-sanitize fuzz demo images bench install clean
 
 all: build
 
@@ -20,14 +20,29 @@ build: deps
 test: build
 	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
 
-# The same suite under AddressSanitizer + UndefinedBehaviorSanitizer.
+# The same suite under AddressSanitizer + UndefinedBehaviorSanitizer (the
+# libFuzzer smoke runs are in `make test`; the corpus replays run here too).
 test-sanitize: deps
-	cmake -S . -B $(SAN_BUILD) $(CMAKE_GEN) -DCMAKE_BUILD_TYPE=Debug -DPSYS_SANITIZE=ON -DPSYS_WERROR=$(WERROR)
+	cmake -S . -B $(SAN_BUILD) $(CMAKE_GEN) -DCMAKE_BUILD_TYPE=Debug -DPSYS_SANITIZE=ON -DPSYS_WERROR=$(WERROR) \
+	      -DPSYS_FUZZ_TARGETS=OFF
 	cmake --build $(SAN_BUILD) -j $(JOBS)
 	ctest --test-dir $(SAN_BUILD) --output-on-failure -j $(JOBS)
 
+# Long fuzzing runs (docs/trust.md): FUZZ_SECONDS per target (scene loader,
+# CLI parser); the corpus grows in $(BUILD)/fuzz-corpus/, crashes land in
+# $(BUILD)/fuzz-artifacts/. Needs clang with libFuzzer (make deps installs it).
+FUZZ_SECONDS ?= 600
+FUZZ_FLAGS   ?=
+fuzz: build
+	bash fuzz/fuzz.sh long scene $(BUILD) $(FUZZ_SECONDS) $(FUZZ_FLAGS)
+	bash fuzz/fuzz.sh long cli $(BUILD) $(FUZZ_SECONDS) $(FUZZ_FLAGS)
+
 demo: build
 	bash scripts/demo.sh $(BUILD)/psys
+
+# The pictures of the examples in README.md (docs/images/*.png).
+images: build
+	bash scripts/render-examples.sh $(BUILD)/psys
 
 bench: build
 	$(BUILD)/psys bench

@@ -2,7 +2,13 @@
 # Installs the Debian 12 packages psys needs to build and test, when missing.
 # As root it runs apt-get; otherwise it prints the exact command to run.
 set -euo pipefail
-PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev)
+# libcairo2-dev and fonts-dejavu-core: pictures and plots (psys run --render,
+# --plot, psys plot); ffmpeg: --render out.mp4 (and better GIFs; optional at
+# run time, the MP4 tests are skipped without it); libxml2-utils: xmllint,
+# which the VTK XML tests use to parse the files back; clang and
+# libclang-rt-14-dev: libFuzzer for the fuzz targets (fuzz/, docs/trust.md).
+PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev libcairo2-dev fonts-dejavu-core ffmpeg libxml2-utils
+      clang libclang-rt-14-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -274,8 +274,10 @@ static double earliest_crossing(const psys_system *s, const double *y0, size_t *
 psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken)
 {
     double h = 0;
-    if (!s->nplanes) {
+    if (!s->nplanes || !s->n) { /* nothing can collide (and the scratch state is NULL with no particles) */
         psys_status st = psys_solver_step(solver, h_max, &h);
+        if (st == PSYS_OK)
+            psys__box_wrap(s); /* periodic axes: back into the box after each accepted step */
         if (h_taken)
             *h_taken = h;
         return st;
@@ -369,12 +371,14 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
             }
             if (pl->stick && dist <= PSYS_CONTACT_DISTANCE) {
                 double *v = s->v + i * d, vn = dot_d(v, pl->n, d);
-                for (int c = 0; c < d; c++)
-                    v[c] = vn * pl->n[c];
+                if (vn <= PSYS_CONTACT_SPEED) /* not when it is leaving the surface */
+                    for (int c = 0; c < d; c++)
+                        v[c] = vn * pl->n[c];
             }
         }
     }
     s->t = t_end;
+    psys__box_wrap(s);
     if (h_taken)
         *h_taken = h;
     return PSYS_OK;

@@ -307,6 +307,8 @@ static psys_status resolve(const psys_behavior_def *def, int dim, const double *
         if (def->r < 0) {
             double u[3];
             b->def.r = length_and_dir(dim, x, x + dim, u);
+            if (!isfinite(b->def.r)) /* a scene holding it could not be saved (JSON has no inf) */
+                return psys__fail(err, PSYS_ERR_INVALID, "distance: the particles are too far apart (their distance is not finite)");
         }
         break;
     case PSYS_BEHAVIOR_POINT_ON_PLANE: {
@@ -335,6 +337,8 @@ static psys_status resolve(const psys_behavior_def *def, int dim, const double *
                 w[c] = x[2 * dim + c] - x[dim + c];
             }
             b->def.angle = angle_of(dim, u, w);
+            if (!isfinite(b->def.angle))
+                return psys__fail(err, PSYS_ERR_INVALID, "angle: the particles' positions give no finite angle");
         }
         break;
     default:
@@ -628,11 +632,11 @@ static psys_status behavior_save(const psys_system *sys, const void *data, cJSON
         ok = ok && psys__add_num(o, "r", def->r);
         break;
     case PSYS_BEHAVIOR_POINT_ON_PLANE:
-        ok = ok && cJSON_AddItemToObject(o, "point", psys__vec_json(def->point, d))
-             && cJSON_AddItemToObject(o, "normal", psys__vec_json(def->normal, d));
+        ok = ok && cJSON_AddItemToObjectCS(o, "point", psys__vec_json(def->point, d))
+             && cJSON_AddItemToObjectCS(o, "normal", psys__vec_json(def->normal, d));
         break;
     case PSYS_BEHAVIOR_POINT_ON_SPHERE:
-        ok = ok && cJSON_AddItemToObject(o, "center", psys__vec_json(def->center, d))
+        ok = ok && cJSON_AddItemToObjectCS(o, "center", psys__vec_json(def->center, d))
              && psys__add_num(o, "radius", def->radius);
         break;
     case PSYS_BEHAVIOR_ANGLE:

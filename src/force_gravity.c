@@ -72,7 +72,7 @@ static psys_status gravity_save(const psys_system *sys, const void *data, cJSON 
     const gravity *gr = data;
     cJSON *o = cJSON_CreateObject();
     if (!o || !cJSON_AddStringToObject(o, "type", "gravity")
-        || !cJSON_AddItemToObject(o, "g", psys__vec_json(gr->g, sys->dim))) {
+        || !cJSON_AddItemToObjectCS(o, "g", psys__vec_json(gr->g, sys->dim))) {
         cJSON_Delete(o);
         return PSYS_ERR_NOMEM;
     }

@@ -212,12 +212,12 @@ static psys_status mouse_save(const psys_system *sys, const void *data, cJSON *a
     int d = sys->dim;
     cJSON *o = cJSON_CreateObject();
     bool ok = o && cJSON_AddStringToObject(o, "type", "mouse-spring")
-              && cJSON_AddItemToObject(o, "particle", psys__ref_json(sys, m->particle))
+              && cJSON_AddItemToObjectCS(o, "particle", psys__ref_json(sys, m->particle))
               && psys__add_num(o, "ks", m->ks) && psys__add_num(o, "kd", m->kd);
     if (ok && m->path.nframes)
-        ok = cJSON_AddItemToObject(o, "path", psys__frames_json(m->path.frames, m->path.nframes, d));
+        ok = cJSON_AddItemToObjectCS(o, "path", psys__frames_json(m->path.frames, m->path.nframes, d));
     else if (ok)
-        ok = cJSON_AddItemToObject(o, "target", psys__vec_json(m->target, d));
+        ok = cJSON_AddItemToObjectCS(o, "target", psys__vec_json(m->target, d));
     if (!ok) {
         cJSON_Delete(o);
         return PSYS_ERR_NOMEM;

@@ -8,5 +8,6 @@ const psys__force_io *const psys__force_types[] = {
     &psys__spring_io,
     &psys__mouse_io,
     &psys__behavior_io,
+    &psys__pair_io,
     NULL,
 };

@@ -404,8 +404,8 @@ static psys_status spring_save(const psys_system *sys, const void *data, cJSON *
     for (size_t k = 0; k < s->n; k++) {
         cJSON *o = cJSON_CreateObject();
         if (!o || !cJSON_AddStringToObject(o, "type", "spring")
-            || !cJSON_AddItemToObject(o, "a", psys__ref_json(sys, s->a[k]))
-            || !cJSON_AddItemToObject(o, "b", psys__ref_json(sys, s->b[k]))
+            || !cJSON_AddItemToObjectCS(o, "a", psys__ref_json(sys, s->a[k]))
+            || !cJSON_AddItemToObjectCS(o, "b", psys__ref_json(sys, s->b[k]))
             || !psys__add_num(o, "ks", s->ks[k]) || !psys__add_num(o, "kd", s->kd[k])
             || !psys__add_num(o, "rest", s->rest[k])) {
             cJSON_Delete(o);

@@ -26,6 +26,10 @@ void *psys__calloc(size_t n, size_t size);
 void *psys__realloc(void *p, size_t n, size_t size);
 /** strdup that does not depend on POSIX. */
 char *psys__strdup(const char *s);
+/** JSON syntax check that allocates nothing (json_check.c): 0 valid, 1 syntax
+ *  error, 2 arrays/objects nested deeper than max_depth; *where (may be NULL)
+ *  gets the offset where it stopped. Accepts no more than cJSON does. */
+int psys__json_check(const char *text, size_t len, int max_depth, size_t *where);
 
 /** One force object of a system. */
 typedef struct psys__force {
@@ -66,6 +70,16 @@ typedef struct psys__plane {
     double backward_friction;
 } psys__plane;
 
+/** Simulation box (DESIGN §2 `box`): periodic axes wrap positions and pair
+ *  forces use the minimum image there. */
+typedef struct psys__box {
+    bool on;              /* a box is set */
+    bool any_periodic;    /* some axis is periodic */
+    bool periodic[3];
+    double lo[3], hi[3];
+    double len[3];        /* hi - lo */
+} psys__box;
+
 struct psys_system {
     int dim;
     size_t n, cap;
@@ -74,6 +88,9 @@ struct psys_system {
     double *mass, *inv_mass;
     unsigned char *flags;
     char **ids;
+    size_t *id_index;      /* hash of ids (system.c): slot -> particle index + 1, 0 = empty */
+    size_t id_index_cap;   /* slots (a power of 2, at least twice the ids), 0 = no index yet */
+    size_t nids;           /* particles with an id (entries in id_index) */
     double t;
     psys__force *forces;
     size_t nforces, forces_cap;
@@ -83,6 +100,10 @@ struct psys_system {
     psys__plane *planes;
     size_t nplanes, planes_cap;
     double *scratch;       /* 2·cap·dim doubles for collision rollback, allocated with planes */
+    double *charge;        /* per-particle charges (box.c), NULL until one is set; ncharge of them, 0 beyond */
+    size_t ncharge, charge_cap;
+    psys__box box;         /* simulation box (box.c) */
+    int threads;           /* threads for parallel force evaluation, 0 = OpenMP default */
     psys_error err;
 };
 
@@ -154,6 +175,18 @@ extern const psys__force_io psys__drag_io;
 extern const psys__force_io psys__spring_io;
 extern const psys__force_io psys__mouse_io;
 extern const psys__force_io psys__behavior_io;
+extern const psys__force_io psys__pair_io;
+
+/* ---- periodic box and pair forces (box.c, force_pair.c) ---- */
+/** Wrap free particles into the box on periodic axes (after accepted steps). */
+void psys__box_wrap(psys_system *s);
+/** Check pair force data (of class psys_pair_class or psys_pair_user_class)
+ *  against box; on failure write a message into msg. */
+psys_status psys__pair_check_box(const void *pair, const psys__box *box, char *msg, size_t cap);
+/** Parse the scene's top-level "box" (scene_load.c calls it before particles and forces). */
+psys_status psys__parse_box(psys__parse *p, const struct cJSON *root);
+/** Add the system's box, if any, to the scene object root; false on out of memory. */
+bool psys__save_box(const psys_system *sys, struct cJSON *root);
 
 /** All force types known to scenes, NULL-terminated. */
 extern const psys__force_io *const psys__force_types[];

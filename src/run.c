@@ -82,7 +82,7 @@ psys_run *psys_run_create(psys_scene *scene, psys_error *err)
         } else {
             double q = set->duration / r->dt;
             double n = ceil(q - 1e-9 * q);
-            if (n > 1e15) {
+            if (!(n <= 1e15)) { /* also NaN: duration/dt = inf makes q - 1e-9·q = inf - inf */
                 psys_run_destroy(r);
                 psys__fail(err, PSYS_ERR_INVALID, "duration/dt asks for more than 1e15 steps");
                 return NULL;

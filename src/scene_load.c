@@ -45,11 +45,14 @@ psys_status psys__parse_fail(psys__parse *p, const char *path, const cJSON *item
     va_start(ap, fmt);
     vsnprintf(what, sizeof what, fmt, ap);
     va_end(ap);
+    /* Builders' and the system's allocation failures come through here as
+     * their messages ("out of memory ..."): keep them PSYS_ERR_NOMEM. */
+    psys_status code = strncmp(what, "out of memory", 13) == 0 ? PSYS_ERR_NOMEM : PSYS_ERR_INVALID;
     if (item) {
         describe(item, got, sizeof got);
-        return psys__fail(p->err, PSYS_ERR_INVALID, "%s: %s (got %s)", path, what, got);
+        return psys__fail(p->err, code, "%s: %s (got %s)", path, what, got);
     }
-    return psys__fail(p->err, PSYS_ERR_INVALID, "%s: %s", path, what);
+    return psys__fail(p->err, code, "%s: %s", path, what);
 }
 
 /* out = path + "." + key (or key at the top level), truncated to cap. */
@@ -290,10 +293,15 @@ static psys_status parse_control(psys__parse *p, const cJSON *ctl, const char *p
             return st;
         if (sys->dim == 2 && cJSON_GetObjectItemCaseSensitive(ctl, "axis")) {
             key_path(kp, sizeof kp, path, "axis");
-            return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "axis"), "only exists in 3-D");
+            return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "axis"),
+                                    "is only used in 3-D scenes (dim is 2)");
         }
         if (sys->dim == 3 && (st = psys__parse_vec(p, ctl, path, "axis", zaxis, axis)) != PSYS_OK)
             return st;
+        if (sys->dim == 3 && !(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2] > 0)) {
+            key_path(kp, sizeof kp, path, "axis");
+            return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "axis"), "must not be zero");
+        }
         if (psys_system_control_circle(sys, i, c, r, w, ph, sys->dim == 3 ? axis : NULL) != PSYS_OK)
             return psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
         return PSYS_OK;
@@ -307,6 +315,8 @@ static psys_status parse_control(psys__parse *p, const cJSON *ctl, const char *p
             || (st = psys__parse_number(p, ctl, path, "phase", true, 0, -INFINITY, false, &ph)) != PSYS_OK)
             return st;
         if (psys_system_control_oscillate(sys, i, c, dir, a, w, ph) != PSYS_OK) {
+            if (sys->err.code == PSYS_ERR_NOMEM)
+                return psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
             key_path(kp, sizeof kp, path, "direction");
             return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(ctl, "direction"),
                                     "must be a nonzero vector");
@@ -347,14 +357,7 @@ static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *
     if (st != PSYS_OK)
         return st;
     char kp[256];
-    for (const char *const *k = (const char *const[]){"charge", NULL}; *k; k++) {
-        const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, *k);
-        if (it) {
-            key_path(kp, sizeof kp, path, *k);
-            return unsupported(p, kp, it);
-        }
-    }
-    double x[3], v[3], zero[3] = {0, 0, 0}, mass;
+    double x[3], v[3], zero[3] = {0, 0, 0}, mass, charge;
     bool fixed = false;
     const cJSON *id = cJSON_GetObjectItemCaseSensitive(obj, "id");
     key_path(kp, sizeof kp, path, "id");
@@ -365,10 +368,13 @@ static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *
     if ((st = psys__parse_vec(p, obj, path, "x", NULL, x)) != PSYS_OK
         || (st = psys__parse_vec(p, obj, path, "v", zero, v)) != PSYS_OK
         || (st = psys__parse_number(p, obj, path, "mass", true, 1.0, 0, true, &mass)) != PSYS_OK
-        || (st = parse_bool(p, obj, path, "fixed", &fixed)) != PSYS_OK)
+        || (st = parse_bool(p, obj, path, "fixed", &fixed)) != PSYS_OK
+        || (st = psys__parse_number(p, obj, path, "charge", true, 0, -INFINITY, false, &charge)) != PSYS_OK)
         return st;
     size_t i;
     if (psys_system_add_particle(p->sys, x, v, mass, id ? id->valuestring : NULL, &i) != PSYS_OK)
+        return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));
+    if (cJSON_GetObjectItemCaseSensitive(obj, "charge") && psys_system_set_charge(p->sys, i, charge) != PSYS_OK)
         return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));
     if (fixed)
         psys_system_set_fixed(p->sys, i, true);
@@ -396,7 +402,7 @@ static psys_status parse_force(psys__parse *p, const cJSON *obj, const char *pat
     for (const psys__force_io *const *io = psys__force_types; *io; io++)
         if (strcmp((*io)->type, type->valuestring) == 0)
             return (*io)->parse(p, obj, path);
-    static const char *const planned[] = {"pair", NULL};
+    static const char *const planned[] = {NULL};
     for (const char *const *t = planned; *t; t++)
         if (strcmp(*t, type->valuestring) == 0)
             return unsupported(p, kp, type);
@@ -490,9 +496,14 @@ static psys_status parse_plane(psys__parse *p, const cJSON *obj, const char *pat
         double f2 = 0;
         for (int k = 0; k < p->sys->dim; k++)
             f2 += def.forward[k] * def.forward[k];
-        if (!(f2 > 0)) {
+        double n2f = 0, fdn = 0;
+        for (int k = 0; k < p->sys->dim; k++) {
+            n2f += def.normal[k] * def.normal[k];
+            fdn += def.forward[k] * def.normal[k];
+        }
+        if (!(f2 > 0) || !(f2 - fdn * fdn / n2f > 1e-24 * f2)) {
             key_path(kp, sizeof kp, path, "forward");
-            return psys__parse_fail(p, kp, fw, "must not be zero");
+            return psys__parse_fail(p, kp, fw, f2 > 0 ? "must not be along the normal" : "must not be zero");
         }
     }
     if (psys_system_add_plane(p->sys, &def) != PSYS_OK)
@@ -502,7 +513,7 @@ static psys_status parse_plane(psys__parse *p, const cJSON *obj, const char *pat
 
 static psys_status parse_output(psys__parse *p, const cJSON *root, psys_settings *set)
 {
-    static const char *const keys[] = {"every", "trajectory", "energy", "render", NULL};
+    static const char *const keys[] = {"every", "trajectory", "energy", "render", "radius", NULL};
     const cJSON *out = cJSON_GetObjectItemCaseSensitive(root, "output");
     if (!out)
         return PSYS_OK;
@@ -513,7 +524,8 @@ static psys_status parse_output(psys__parse *p, const cJSON *root, psys_settings
         || (st = parse_integer(p, out, "output", "every", 1, &set->every, NULL)) != PSYS_OK
         || (st = parse_string(p, out, "output", "trajectory", set->trajectory, sizeof set->trajectory)) != PSYS_OK
         || (st = parse_string(p, out, "output", "energy", set->energy, sizeof set->energy)) != PSYS_OK
-        || (st = parse_string(p, out, "output", "render", set->render, sizeof set->render)) != PSYS_OK)
+        || (st = parse_string(p, out, "output", "render", set->render, sizeof set->render)) != PSYS_OK
+        || (st = psys__parse_number(p, out, "output", "radius", true, 0, 0, true, &set->render_radius)) != PSYS_OK)
         return st;
     return PSYS_OK;
 }
@@ -591,13 +603,11 @@ static psys_status parse_root(psys__parse *p, const cJSON *root, psys_scene *sce
     if ((st = psys__parse_number(p, root, "", "duration", true, set->duration, 0, false, &set->duration)) != PSYS_OK)
         return st;
     set->use_steps = has_steps;
-    for (const char *const *k = (const char *const[]){"box", NULL}; *k; k++) {
-        const cJSON *it = cJSON_GetObjectItemCaseSensitive(root, *k);
-        if (it)
-            return unsupported(p, *k, it);
-    }
     if (!(p->sys = scene->sys = psys_system_create((int)dim, p->err)))
         return p->err->code;
+    /* the box before forces, which check their cutoffs against it */
+    if ((st = psys__parse_box(p, root)) != PSYS_OK)
+        return st;
     /* structures after the explicit particles and before forces, so that
      * forces can refer to structure particles by id */
     if ((st = parse_list(p, root, "particles", parse_particle)) != PSYS_OK
@@ -692,6 +702,19 @@ psys_scene *psys_scene_load_string(const char *text, size_t len, psys_error *err
         }
         if (!root || off < len) {
             char where[64], got[40];
+            /* cJSON says only "failed": out of memory, too deep, or a syntax error? */
+            size_t at = 0;
+            int why = root ? 1 : psys__json_check(text, len, CJSON_NESTING_LIMIT, &at);
+            if (why == 0) {
+                psys__fail(err, PSYS_ERR_NOMEM, "(root): out of memory reading the JSON text");
+                return NULL;
+            }
+            if (why == 2) {
+                locate(text, at, where, sizeof where);
+                psys__fail(err, PSYS_ERR_INVALID, "%s: JSON nested too deeply (more than %d levels of arrays and objects)",
+                           where, CJSON_NESTING_LIMIT);
+                return NULL;
+            }
             if (!root)
                 off = error_offset(text, len, off);
             if (off > len)

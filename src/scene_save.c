@@ -5,9 +5,14 @@
 #include "scene.h"
 
 #include <cjson/cJSON.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* Items go in with cJSON_AddItemToObjectCS (literal keys, not copied): the
+ * copying cJSON_AddItemToObject fails when the key's copy cannot be
+ * allocated and then leaks the item (tests/test_alloc.c). */
 
 /* cJSON prints numbers with a relative tolerance and may drop the last bit;
  * write the shortest text that reads back as exactly the same double. */
@@ -73,21 +78,21 @@ static cJSON *control_json(const psys__controller *c, int d)
     switch (c->kind) {
     case PSYS__CONTROL_CIRCLE:
         ok = ok && cJSON_AddStringToObject(o, "type", "circle")
-             && cJSON_AddItemToObject(o, "center", psys__vec_json(c->center, d))
+             && cJSON_AddItemToObjectCS(o, "center", psys__vec_json(c->center, d))
              && psys__add_num(o, "radius", c->radius) && psys__add_num(o, "omega", c->omega)
              && psys__add_num(o, "phase", c->phase)
-             && (d == 2 || cJSON_AddItemToObject(o, "axis", psys__vec_json(c->given, 3)));
+             && (d == 2 || cJSON_AddItemToObjectCS(o, "axis", psys__vec_json(c->given, 3)));
         break;
     case PSYS__CONTROL_OSCILLATE:
         ok = ok && cJSON_AddStringToObject(o, "type", "oscillate")
-             && cJSON_AddItemToObject(o, "center", psys__vec_json(c->center, d))
-             && cJSON_AddItemToObject(o, "direction", psys__vec_json(c->given, d))
+             && cJSON_AddItemToObjectCS(o, "center", psys__vec_json(c->center, d))
+             && cJSON_AddItemToObjectCS(o, "direction", psys__vec_json(c->given, d))
              && psys__add_num(o, "amplitude", c->amplitude) && psys__add_num(o, "omega", c->omega)
              && psys__add_num(o, "phase", c->phase);
         break;
     case PSYS__CONTROL_KEYFRAMES:
         ok = ok && cJSON_AddStringToObject(o, "type", "keyframes")
-             && cJSON_AddItemToObject(o, "frames", psys__frames_json(c->frames, c->nframes, d));
+             && cJSON_AddItemToObjectCS(o, "frames", psys__frames_json(c->frames, c->nframes, d));
         break;
     case PSYS__CONTROL_CALLBACK:
         ok = false;
@@ -113,8 +118,8 @@ static bool add_planes(const psys_system *sys, cJSON *root)
         if (!o)
             return false;
         cJSON_AddItemToArray(arr, o);
-        if (!cJSON_AddItemToObject(o, "point", psys__vec_json(pl->p, sys->dim))
-            || !cJSON_AddItemToObject(o, "normal", psys__vec_json(pl->given_n, sys->dim))
+        if (!cJSON_AddItemToObjectCS(o, "point", psys__vec_json(pl->p, sys->dim))
+            || !cJSON_AddItemToObjectCS(o, "normal", psys__vec_json(pl->given_n, sys->dim))
             || !psys__add_num(o, "restitution", pl->restitution)
             || !(pl->stick ? cJSON_AddStringToObject(o, "friction", "stick") != NULL
                            : psys__add_num(o, "friction", pl->friction) != NULL)
@@ -123,7 +128,7 @@ static bool add_planes(const psys_system *sys, cJSON *root)
         bool directional = false;
         for (int c = 0; c < sys->dim; c++)
             directional |= pl->given_forward[c] != 0;
-        if (directional && (!cJSON_AddItemToObject(o, "forward", psys__vec_json(pl->given_forward, sys->dim))
+        if (directional && (!cJSON_AddItemToObjectCS(o, "forward", psys__vec_json(pl->given_forward, sys->dim))
                             || !psys__add_num(o, "backward_friction", pl->backward_friction)))
             return false;
     }
@@ -142,15 +147,18 @@ static bool add_particles(const psys_system *sys, cJSON *root)
             return false;
         cJSON_AddItemToArray(arr, o);
         if ((sys->ids[i] && !cJSON_AddStringToObject(o, "id", sys->ids[i]))
-            || !cJSON_AddItemToObject(o, "x", psys__vec_json(sys->x + i * d, d))
-            || !cJSON_AddItemToObject(o, "v", psys__vec_json(sys->v + i * d, d))
+            || !cJSON_AddItemToObjectCS(o, "x", psys__vec_json(sys->x + i * d, d))
+            || !cJSON_AddItemToObjectCS(o, "v", psys__vec_json(sys->v + i * d, d))
             || !psys__add_num(o, "mass", sys->mass[i])
             || ((sys->flags[i] & PSYS_PARTICLE_FIXED) && !cJSON_AddTrueToObject(o, "fixed")))
+            return false;
+        if (i < sys->ncharge && (sys->charge[i] != 0 || signbit(sys->charge[i]))
+            && !psys__add_num(o, "charge", sys->charge[i]))
             return false;
         if (sys->flags[i] & PSYS_PARTICLE_CONTROLLED) {
             size_t k = psys__controller_find(sys, i);
             cJSON *c = control_json(&sys->ctrl[k], d);
-            if (!c || !cJSON_AddItemToObject(o, "control", c)) {
+            if (!c || !cJSON_AddItemToObjectCS(o, "control", c)) {
                 cJSON_Delete(c);
                 return false;
             }
@@ -201,7 +209,7 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
               && ((set->cg_tolerance == 1e-6 && set->cg_max_iterations == 1000)
                   || (psys__add_num(root, "cg_tolerance", set->cg_tolerance)
                       && psys__add_num(root, "cg_max_iterations", (double)set->cg_max_iterations)))
-              && add_particles(sys, root);
+              && psys__save_box(sys, root) && add_particles(sys, root);
     if (!ok) {
         cJSON_Delete(root);
         psys__fail(err, PSYS_ERR_NOMEM, "out of memory saving the scene");
@@ -213,12 +221,13 @@ char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *res
         cJSON_Delete(root);
         return NULL;
     }
-    if (set->every != 1 || set->trajectory[0] || set->energy[0] || set->render[0]) {
+    if (set->every != 1 || set->trajectory[0] || set->energy[0] || set->render[0] || set->render_radius > 0) {
         cJSON *out = cJSON_AddObjectToObject(root, "output");
         ok = out && psys__add_num(out, "every", (double)set->every)
              && (!set->trajectory[0] || cJSON_AddStringToObject(out, "trajectory", set->trajectory))
              && (!set->energy[0] || cJSON_AddStringToObject(out, "energy", set->energy))
-             && (!set->render[0] || cJSON_AddStringToObject(out, "render", set->render));
+             && (!set->render[0] || cJSON_AddStringToObject(out, "render", set->render))
+             && (!(set->render_radius > 0) || psys__add_num(out, "radius", set->render_radius));
     }
     if (ok && resume) {
         cJSON *ck = cJSON_AddObjectToObject(root, "checkpoint");

@@ -35,6 +35,7 @@ void psys_system_destroy(psys_system *s)
     free(s->ctrl);
     free(s->planes);
     free(s->scratch);
+    free(s->charge);
     free(s->forces);
     free(s->x);
     free(s->v);
@@ -43,7 +44,56 @@ void psys_system_destroy(psys_system *s)
     free(s->inv_mass);
     free(s->flags);
     free(s->ids);
+    free(s->id_index);
     free(s);
+}
+
+/* ---- id index: an open-addressing hash of particle ids, so that loading a
+ * scene of n named particles (and springs naming them) takes O(n), not O(n²). */
+
+static size_t id_hash(const char *id)
+{
+    uint64_t h = 1469598103934665603ull; /* FNV-1a */
+    for (const unsigned char *c = (const unsigned char *)id; *c; c++)
+        h = (h ^ *c) * 1099511628211ull;
+    return (size_t)h;
+}
+
+static void id_index_put(psys_system *s, size_t i)
+{
+    size_t mask = s->id_index_cap - 1, k = id_hash(s->ids[i]) & mask;
+    while (s->id_index[k])
+        k = (k + 1) & mask;
+    s->id_index[k] = i + 1;
+    s->nids++;
+}
+
+/* Refill the index from the ids of particles 0..n-1 (no allocation). */
+static void id_index_rebuild(psys_system *s)
+{
+    if (!s->id_index)
+        return;
+    memset(s->id_index, 0, s->id_index_cap * sizeof *s->id_index);
+    s->nids = 0;
+    for (size_t i = 0; i < s->n; i++)
+        if (s->ids[i])
+            id_index_put(s, i);
+}
+
+/* Room in the index for one more id (at most half the slots in use). */
+static psys_status id_index_reserve(psys_system *s)
+{
+    if (2 * (s->nids + 1) <= s->id_index_cap)
+        return PSYS_OK;
+    size_t cap = s->id_index_cap ? 2 * s->id_index_cap : 64;
+    size_t *t = psys__calloc(cap, sizeof *t);
+    if (!t)
+        return PSYS_ERR_NOMEM;
+    free(s->id_index);
+    s->id_index = t;
+    s->id_index_cap = cap;
+    id_index_rebuild(s);
+    return PSYS_OK;
 }
 
 const char *psys_system_last_error(const psys_system *s) { return s->err.message; }
@@ -114,8 +164,12 @@ void psys__system_truncate(psys_system *s, size_t n)
         free(s->ids[i]);
         s->ids[i] = NULL;
     }
-    if (n < s->n)
+    if (n < s->n) {
         s->n = n;
+        id_index_rebuild(s);
+    }
+    if (s->ncharge > s->n)
+        s->ncharge = s->n; /* removed particles take no charge with them to their successors */
 }
 
 psys_status psys__system_add_particle_unique(psys_system *s, const double *x, const double *v, double mass,
@@ -129,7 +183,7 @@ psys_status psys__system_add_particle_unique(psys_system *s, const double *x, co
     if (reserve(s, s->n + 1) != PSYS_OK)
         return PSYS_ERR_NOMEM;
     char *copy = NULL;
-    if (id && !(copy = psys__strdup(id)))
+    if (id && (id_index_reserve(s) != PSYS_OK || !(copy = psys__strdup(id))))
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a particle");
     size_t i = s->n;
     for (int k = 0; k < d; k++) {
@@ -141,6 +195,8 @@ psys_status psys__system_add_particle_unique(psys_system *s, const double *x, co
     s->inv_mass[i] = 1.0 / mass;
     s->flags[i] = 0;
     s->ids[i] = copy;
+    if (copy)
+        id_index_put(s, i);
     s->n++;
     if (index)
         *index = i;
@@ -149,13 +205,17 @@ psys_status psys__system_add_particle_unique(psys_system *s, const double *x, co
 
 psys_status psys_system_find(const psys_system *s, const char *id, size_t *index)
 {
-    /* Linear scan: lookups happen while building, not while stepping. */
-    for (size_t i = 0; i < s->n; i++)
-        if (s->ids[i] && strcmp(s->ids[i], id) == 0) {
+    if (!s->id_index_cap)
+        return PSYS_ERR_INVALID; /* no particle has an id */
+    size_t mask = s->id_index_cap - 1;
+    for (size_t k = id_hash(id) & mask; s->id_index[k]; k = (k + 1) & mask) {
+        size_t i = s->id_index[k] - 1;
+        if (strcmp(s->ids[i], id) == 0) {
             if (index)
                 *index = i;
             return PSYS_OK;
         }
+    }
     return PSYS_ERR_INVALID;
 }
 
@@ -255,6 +315,19 @@ psys_status psys_system_add_spring(psys_system *s, size_t a, size_t b, double ks
             l2 += dx * dx;
         }
         rest = sqrt(l2);
+        if (!isfinite(rest)) { /* the squares overflowed: scale by the largest component */
+            double big = 0, q2 = 0;
+            for (int k = 0; k < s->dim; k++)
+                big = fmax(big, fabs(s->x[a * s->dim + k] - s->x[b * s->dim + k]));
+            for (int k = 0; k < s->dim; k++) {
+                double q = (s->x[a * s->dim + k] - s->x[b * s->dim + k]) / big;
+                q2 += q * q;
+            }
+            rest = big * sqrt(q2);
+        }
+        if (!isfinite(rest)) /* a scene holding it could not be saved (JSON has no inf) */
+            return psys__fail(&s->err, PSYS_ERR_INVALID,
+                              "particles %zu and %zu are too far apart for a spring (their distance is not finite)", a, b);
     }
     if (!s->springs) {
         void *set = psys__springs_create();
@@ -299,7 +372,8 @@ void psys__sys_eval(const psys_system *s, double t, const double *x, const doubl
  * forces, which depend on the total applied force (notes §7.3). */
 static void accumulate(const psys_system *s, const psys_force_eval *e, double *f)
 {
-    memset(f, 0, sizeof(double) * s->n * (size_t)s->dim);
+    if (s->n) /* f may be NULL with no particles */
+        memset(f, 0, sizeof(double) * s->n * (size_t)s->dim);
     for (size_t i = 0; i < s->nforces; i++)
         s->forces[i].cls->apply(s->forces[i].data, e, f);
     if (s->nplanes)
@@ -312,6 +386,8 @@ static void ode_get_state(void *ctx, double *y)
 {
     const psys_system *s = ctx;
     size_t nd = s->n * (size_t)s->dim;
+    if (nd == 0) /* no particles: s->x may be NULL, and memcpy(_, NULL, 0) is undefined */
+        return;
     memcpy(y, s->x, nd * sizeof(double));
     memcpy(y + nd, s->v, nd * sizeof(double));
 }
@@ -320,6 +396,8 @@ static void ode_set_state(void *ctx, const double *y)
 {
     psys_system *s = ctx;
     size_t nd = s->n * (size_t)s->dim;
+    if (nd == 0)
+        return;
     memcpy(s->x, y, nd * sizeof(double));
     memcpy(s->v, y + nd, nd * sizeof(double));
 }

@@ -24,6 +24,10 @@ psys_status psys__vfail(psys_error *err, psys_status code, const char *fmt, va_l
     if (err) {
         err->code = code;
         vsnprintf(err->message, sizeof err->message, fmt, ap);
+        /* One line, whatever a scene's keys or ids hold ("a\nb" as a key). */
+        for (char *c = err->message; *c; c++)
+            if ((unsigned char)*c < 0x20 || *c == 0x7f)
+                *c = '?';
     }
     return code;
 }

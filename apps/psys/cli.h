@@ -30,6 +30,11 @@ int outfile_commit(outfile *o);
 /** Close and delete the temporary file (no-op if not open). */
 void outfile_abort(outfile *o);
 
+/** Warn on stderr (unless quiet) when an explicit fixed-step solver's dt
+ *  exceeds 2/omega_max of the stiffest spring (psys_system_stiffest_omega);
+ *  not for implicit-euler or rk45. */
+void cli_stability_warning(const char *source, psys_scene *scene, int quiet);
+
 /** Parse a strictly positive finite double; returns -1 if s is not one. */
 int parse_positive(const char *s, double *out);
 /** Parse a non-negative finite double. */
@@ -38,7 +43,10 @@ int parse_nonneg(const char *s, double *out);
 int parse_int(const char *s, long long min, long long max, long long *out);
 
 int cmd_run(int argc, char **argv);
+/** Parse and apply `psys run` options to set only (no scene, no files): EXIT_OK or EXIT_BAD_INPUT. */
+int cmd_run_parse(int argc, char **argv, psys_settings *set);
 int cmd_check(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
+int cmd_plot(int argc, char **argv);
 
 #endif

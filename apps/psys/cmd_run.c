@@ -1,5 +1,7 @@
-/* psys run: load, override, step, write frames, checkpoint (DESIGN §3, §3a). */
+/* psys run: load, override, step, write frames, render, plot, checkpoint
+ * (DESIGN §3, §3a; docs/cli.md). */
 #include "cli.h"
+#include "render.h"
 
 #include <math.h>
 #include <signal.h>
@@ -16,8 +18,21 @@ typedef struct run_opts {
     const char *scene;
     const char *dt, *steps, *duration, *integrator, *every, *out, *energy, *render, *threads;
     const char *checkpoint, *resume;
+    const char *size, *fps, *camera, *radius, *plot;
     int quiet;
 } run_opts;
+
+/* Trajectory formats, by the --out extension. */
+typedef enum traj_format { TRAJ_NONE, TRAJ_CSV, TRAJ_XYZ, TRAJ_VTP, TRAJ_VTK } traj_format;
+
+/* Rendering and plotting settings after the flags were checked. */
+typedef struct picture_opts {
+    int width, height;  /* --size, default 800x600 */
+    double fps;         /* --fps, default 30 */
+    camera_spec cam;    /* --camera */
+    sink_kind kind;     /* of the render path */
+    traj_format traj;   /* of the trajectory path */
+} picture_opts;
 
 static double now_seconds(void)
 {
@@ -61,7 +76,11 @@ static int parse_args(int argc, char **argv, run_opts *o)
             || take(argc, argv, &i, "--render", &o->render, &bad)
             || take(argc, argv, &i, "--threads", &o->threads, &bad)
             || take(argc, argv, &i, "--checkpoint", &o->checkpoint, &bad)
-            || take(argc, argv, &i, "--resume", &o->resume, &bad)) {
+            || take(argc, argv, &i, "--resume", &o->resume, &bad)
+            || take(argc, argv, &i, "--size", &o->size, &bad) || take(argc, argv, &i, "--fps", &o->fps, &bad)
+            || take(argc, argv, &i, "--camera", &o->camera, &bad)
+            || take(argc, argv, &i, "--radius", &o->radius, &bad)
+            || take(argc, argv, &i, "--plot", &o->plot, &bad)) {
             if (bad)
                 return -1;
         } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
@@ -94,8 +113,9 @@ static const char *extension(const char *path)
     return dot ? dot : "";
 }
 
-/* Apply command-line overrides to the scene's settings (flags win). */
-static int apply_flags(const run_opts *o, psys_settings *set)
+/* Apply command-line overrides to the scene's settings (flags win) and check
+ * the picture options for a dim-D scene into pic. */
+static int apply_flags(const run_opts *o, psys_settings *set, int dim, picture_opts *pic)
 {
     long long n;
     double x;
@@ -156,34 +176,100 @@ static int apply_flags(const run_opts *o, psys_settings *set)
     COPY_PATH(o->energy, energy)
     COPY_PATH(o->render, render)
 #undef COPY_PATH
+    if (o->plot && !o->plot[0]) {
+        cli_error("--plot: path must not be empty");
+        return -1;
+    }
+    pic->traj = TRAJ_NONE;
     const char *traj_label = o->out ? "--out" : "output.trajectory";
     if (set->trajectory[0]) {
         const char *ext = extension(set->trajectory);
-        if (strcmp(ext, ".vtk") == 0 || strcmp(ext, ".vtp") == 0 || strcmp(ext, ".xyz") == 0) {
-            cli_error("%s %s: the %s format is not available in this version of psys yet (use .csv)", traj_label,
+        if (strcmp(ext, ".csv") == 0)
+            pic->traj = TRAJ_CSV;
+        else if (strcmp(ext, ".xyz") == 0)
+            pic->traj = TRAJ_XYZ;
+        else if (strcmp(ext, ".vtp") == 0)
+            pic->traj = TRAJ_VTP;
+        else if (strcmp(ext, ".vtk") == 0)
+            pic->traj = TRAJ_VTK;
+        else {
+            cli_error("%s %s: unknown trajectory format (got \"%s\"; use .csv, .vtp, .vtk or .xyz)", traj_label,
                       set->trajectory, ext);
             return -1;
         }
-        if (strcmp(ext, ".csv") != 0) {
-            cli_error("%s %s: unknown trajectory format (got \"%s\"; use .csv)", traj_label, set->trajectory, ext);
+    }
+    /* Pictures. */
+    const char *render_label = o->render ? "--render" : "output.render";
+    bool rendering = set->render[0] != '\0';
+    pic->width = 800;
+    pic->height = 600;
+    pic->fps = 30;
+    camera_spec_default(&pic->cam, dim);
+    if (o->size) {
+        if (parse_size(o->size, &pic->width, &pic->height) != 0) {
+            cli_error("--size: must be WIDTHxHEIGHT, each from 16 to 8192 (got %s)", o->size);
+            return -1;
+        }
+        if (!rendering && !o->plot) {
+            cli_error("--size: only with --render or --plot (or output.render)");
             return -1;
         }
     }
-    if (set->render[0]) {
-        cli_error("%s %s: rendering is not available in this version of psys yet", o->render ? "--render" : "output.render",
-                  set->render);
+    if (o->fps) {
+        if (parse_positive(o->fps, &x) != 0 || x > 1000) {
+            cli_error("--fps: must be a number > 0 and at most 1000 (got %s)", o->fps);
+            return -1;
+        }
+        pic->fps = x;
+    }
+    if (o->camera) {
+        char why[512];
+        if (camera_spec_parse(o->camera, &pic->cam, why, sizeof why) != 0) {
+            cli_error("--camera: %s", why);
+            return -1;
+        }
+    }
+    if (o->radius) {
+        if (parse_positive(o->radius, &x) != 0) {
+            cli_error("--radius: must be a finite number > 0 (got %s)", o->radius);
+            return -1;
+        }
+        set->render_radius = x;
+    }
+    const char *lone = o->fps ? "--fps" : o->camera ? "--camera" : o->radius ? "--radius" : NULL;
+    if (lone && !rendering) {
+        cli_error("%s: only with --render (or output.render)", lone);
+        return -1;
+    }
+    if (rendering) {
+        char why[512];
+        if (sink_kind_of(set->render, &pic->kind, why, sizeof why) != 0) {
+            cli_error("%s %s: %s", render_label, set->render, why);
+            return -1;
+        }
+        if (pic->kind == SINK_MP4 && (pic->width % 2 || pic->height % 2)) {
+            cli_error("--size: .mp4 (H.264, yuv420p) needs an even width and height (got %dx%d)", pic->width,
+                      pic->height);
+            return -1;
+        }
+    }
+    if (o->plot && strcmp(extension(o->plot), ".png") != 0) {
+        cli_error("--plot %s: the energy plot is a PNG (got \"%s\"; use a name ending in .png)", o->plot,
+                  extension(o->plot));
         return -1;
     }
     return 0;
 }
 
+/* ---------------------------------------------------------------- progress */
+
 /* Progress on a terminal only, and only once a run has taken 2 s. */
 typedef struct progress {
     int enabled, shown;
-    double start, last;
+    double start, last, phase_start;
 } progress;
 
-static void progress_update(progress *p, const psys_run *run)
+static void progress_update(progress *p, const psys_run *run, const char *label)
 {
     if (!p->enabled)
         return;
@@ -198,27 +284,184 @@ static void progress_update(progress *p, const psys_run *run)
     for (int i = 0; i < 30; i++)
         bar[i] = i < filled ? '#' : '.';
     bar[30] = '\0';
-    double eta = f > 0 ? (t - p->start) * (1 - f) / f : 0;
-    fprintf(stderr, "\r[%s] %3d%%  step %lld  eta %.0f s ", bar, (int)(f * 100), psys_run_step_index(run), eta);
+    double eta = f > 0 ? (t - p->phase_start) * (1 - f) / f : 0;
+    fprintf(stderr, "\r[%s] %3d%%  step %lld  eta %.0f s%s ", bar, (int)(f * 100), psys_run_step_index(run), eta,
+            label);
     fflush(stderr);
 }
 
 static void progress_clear(progress *p)
 {
     if (p->shown)
-        fprintf(stderr, "\r%60s\r", "");
+        fprintf(stderr, "\r%72s\r", "");
+    p->shown = 0;
 }
 
+/* ---------------------------------------------------------------- frames for pictures */
+
+/* Picture frames are taken at simulated times t0 + k/fps: after each step,
+ * every k whose time has been reached (the state of the nearest step at or
+ * after it) is due. Steps longer than 1/fps repeat a state, so a video
+ * keeps time. */
+typedef struct frame_clock {
+    double t0, fps;
+    long long next;
+} frame_clock;
+
+static long long frames_due(frame_clock *c, double t)
+{
+    long long n = 0;
+    while (c->t0 + (double)c->next / c->fps <= t + 1e-9 / c->fps) {
+        c->next++;
+        n++;
+    }
+    return n;
+}
+
+/* ---------------------------------------------------------------- energy plot */
+
+typedef struct energy_series {
+    double *t, *ke, *pe, *total;
+    size_t n, cap;
+    long long stride, skip; /* after thinning, keep every stride-th sample */
+    int oom;
+} energy_series;
+
+#define ENERGY_MAX_SAMPLES (1u << 20)
+
+static void energy_add(energy_series *e, const psys_system *sys)
+{
+    if (e->oom)
+        return;
+    if (e->stride > 1 && (e->skip++ % e->stride) != 0)
+        return;
+    if (e->n == ENERGY_MAX_SAMPLES) { /* keep every other sample from now on */
+        size_t k = 0;
+        for (size_t i = 0; i < e->n; i += 2, k++) {
+            e->t[k] = e->t[i];
+            e->ke[k] = e->ke[i];
+            e->pe[k] = e->pe[i];
+            e->total[k] = e->total[i];
+        }
+        e->n = k;
+        e->stride = e->stride ? 2 * e->stride : 2;
+        e->skip = 1;
+    }
+    if (e->n == e->cap) {
+        size_t nc = e->cap ? 2 * e->cap : 1024;
+        double *arr[4] = {e->t, e->ke, e->pe, e->total};
+        for (int j = 0; j < 4; j++) {
+            double *q = realloc(arr[j], nc * sizeof *q);
+            if (!q) {
+                e->oom = 1;
+                return;
+            }
+            arr[j] = q;
+            switch (j) {
+            case 0: e->t = q; break;
+            case 1: e->ke = q; break;
+            case 2: e->pe = q; break;
+            default: e->total = q; break;
+            }
+        }
+        e->cap = nc;
+    }
+    double ke = psys_system_kinetic_energy(sys), pe = psys_system_potential_energy(sys);
+    e->t[e->n] = psys_system_time(sys);
+    e->ke[e->n] = ke;
+    e->pe[e->n] = pe;
+    e->total[e->n] = ke + pe;
+    e->n++;
+}
+
+static void energy_free(energy_series *e)
+{
+    free(e->t);
+    free(e->ke);
+    free(e->pe);
+    free(e->total);
+    memset(e, 0, sizeof *e);
+}
+
+static int energy_plot(energy_series *e, outfile *o, const picture_opts *pic, const char *source)
+{
+    if (e->oom) {
+        cli_error("--plot %s: out of memory", o->path ? o->path : "");
+        outfile_abort(o);
+        return -1;
+    }
+    plot_series s[3] = {{"kinetic", e->t, e->ke, e->n}, {"potential", e->t, e->pe, e->n},
+                        {"total", e->t, e->total, e->n}};
+    char title[300];
+    const char *base = strrchr(source, '/') ? strrchr(source, '/') + 1 : source;
+    snprintf(title, sizeof title, "%s: energy", base);
+    plot_spec spec = {pic->width, pic->height, title, "t (s)", "energy (J)"};
+    if (plot_write_png(o->fp, &spec, s, 3) != 0) {
+        cli_error("--plot: cannot draw or write the plot");
+        outfile_abort(o);
+        return -1;
+    }
+    return outfile_commit(o);
+}
+
+/* ---------------------------------------------------------------- outputs */
+
 typedef struct outputs {
-    outfile traj, energy;
+    traj_format fmt;
+    outfile traj;       /* CSV or XYZ: the trajectory; VTP/VTK: the .pvd series */
+    char *stem;         /* VTP/VTK: the path without its extension; frames are stem_NNNNNN.ext */
+    const char *label;  /* --out or output.trajectory */
+    long long vtk_frames;
+    outfile energy;
+    int plot_on;
+    energy_series plot;
 } outputs;
+
+/* One VTP/VTK frame file, written under a temporary name and renamed. */
+static int write_vtk_frame(outputs *out, const psys_system *sys, long long step)
+{
+    size_t len = strlen(out->stem) + 40;
+    char *name = malloc(len);
+    if (!name)
+        return -1;
+    const char *ext = out->fmt == TRAJ_VTP ? "vtp" : "vtk";
+    snprintf(name, len, "%s_%06lld.%s", out->stem, out->vtk_frames, ext);
+    outfile o;
+    int rc = outfile_open(&o, name, out->label);
+    if (rc == 0) {
+        rc = (out->fmt == TRAJ_VTP ? psys_vtp_write_frame(o.fp, sys, step) : psys_vtk_write_frame(o.fp, sys, step));
+        if (rc != 0)
+            outfile_abort(&o);
+        else
+            rc = outfile_commit(&o);
+    }
+    if (rc == 0) {
+        const char *slash = strrchr(name, '/');
+        rc = psys_pvd_write_entry(out->traj.fp, psys_system_time(sys), slash ? slash + 1 : name);
+        out->vtk_frames++;
+    }
+    free(name);
+    return rc;
+}
 
 static int write_frame(outputs *out, const psys_system *sys, long long step)
 {
-    if (out->traj.fp && psys_csv_write_trajectory_frame(out->traj.fp, sys, step) != 0)
-        return -1;
+    if (out->traj.fp) {
+        int rc = 0;
+        switch (out->fmt) {
+        case TRAJ_CSV: rc = psys_csv_write_trajectory_frame(out->traj.fp, sys, step); break;
+        case TRAJ_XYZ: rc = psys_xyz_write_frame(out->traj.fp, sys, step); break;
+        case TRAJ_VTP:
+        case TRAJ_VTK: rc = write_vtk_frame(out, sys, step); break;
+        case TRAJ_NONE: break;
+        }
+        if (rc != 0)
+            return -1;
+    }
     if (out->energy.fp && psys_csv_write_energy_frame(out->energy.fp, sys, step) != 0)
         return -1;
+    if (out->plot_on)
+        energy_add(&out->plot, sys);
     return 0;
 }
 
@@ -244,6 +487,147 @@ static int write_checkpoint(outfile *o, const psys_scene *scene, const psys_run 
 static int same_path(const char *a, const char *b) { return a && b && a[0] && strcmp(a, b) == 0; }
 
 static const char *display_name(const char *path) { return strcmp(path, "-") == 0 ? "<stdin>" : path; }
+
+/* ---------------------------------------------------------------- framing */
+
+/* Bounds of every picture frame of the run, from a copy of the scene run
+ * ahead (the same steps: saving and loading a scene is exact). Stops early at
+ * a failure or a signal. Returns 0, or -1 with the reason in err if the scene
+ * could not be copied (out of memory). */
+static int run_bounds(psys_scene *scene, const picture_opts *pic, bounds *b, progress *prog, psys_error *err)
+{
+    const psys_resume_state *rs = psys_scene_resume_state(scene);
+    char *text = psys_scene_to_string(scene, rs->present ? rs : NULL, err);
+    if (!text)
+        return -1;
+    psys_scene *copy = psys_scene_load_string(text, strlen(text), err);
+    free(text);
+    if (!copy)
+        return -1;
+    psys_run *run = psys_run_create(copy, err);
+    if (!run) {
+        psys_scene_destroy(copy);
+        return -1;
+    }
+    psys_system *sys = psys_scene_system(copy);
+    frame_clock fc = {psys_system_time(sys), pic->fps, 0};
+    frames_due(&fc, psys_system_time(sys));
+    bounds_add_system(b, sys);
+    prog->phase_start = now_seconds();
+    psys_error step_err;
+    while (!psys_run_done(run) && !stop_signal) {
+        if (psys_run_step(run, &step_err) != PSYS_OK)
+            break;
+        if (frames_due(&fc, psys_system_time(sys)) > 0)
+            bounds_add_system(b, sys);
+        progress_update(prog, run, "  (framing)");
+    }
+    progress_clear(prog);
+    psys_run_destroy(run);
+    psys_scene_destroy(copy);
+    return 0;
+}
+
+/* A renderer for the picture options, framing b (or sys's current state when b is NULL or empty). */
+static renderer *make_renderer(const picture_opts *pic, const psys_settings *set, const psys_system *sys,
+                               const bounds *b)
+{
+    bounds now;
+    if (!b || !b->any) {
+        bounds_init(&now, &pic->cam, pic->width, pic->height);
+        bounds_add_system(&now, sys);
+        b = &now;
+    }
+    camera cam;
+    camera_setup(&cam, &pic->cam, pic->width, pic->height, b);
+    double radius = set->render_radius > 0 ? set->render_radius : render_auto_radius(sys, &cam);
+    return renderer_create(pic->width, pic->height, &cam, radius);
+}
+
+/* Draw the current state once and hand it to the sink as the next k frames;
+ * 1 (message printed) on failure. */
+static int draw_frames(renderer *ren, sink *snk, const psys_system *sys, long long k, const char *label)
+{
+    if (k <= 0)
+        return 0;
+    if (renderer_draw(ren, sys) != 0) {
+        cli_error("%s: out of memory drawing a frame", label);
+        return 1;
+    }
+    for (; k > 0; k--)
+        if (sink_frame(snk, ren) != 0)
+            return 1;
+    return 0;
+}
+
+/* ---------------------------------------------------------------- psys run */
+
+/* Parse-only entry point (fuzz/fuzz_cli.c): the options of `psys run` checked
+ * and applied to set as cmd_run does (for a 3-D scene), with no scene loaded
+ * and no file touched. */
+int cmd_run_parse(int argc, char **argv, psys_settings *set)
+{
+    run_opts o;
+    picture_opts pic;
+    return parse_args(argc, argv, &o) != 0 || apply_flags(&o, set, 3, &pic) != 0 ? EXIT_BAD_INPUT : EXIT_OK;
+}
+
+/* Open every output before the first step; on failure nothing is left behind. */
+static int open_outputs(const run_opts *o, const psys_settings *set, const picture_opts *pic, outputs *out,
+                        outfile *ck, outfile *plot, sink **snk)
+{
+    out->fmt = pic->traj;
+    out->label = o->out ? "--out" : "output.trajectory";
+    const char *traj_path = set->trajectory[0] ? set->trajectory : NULL;
+    char *pvd = NULL;
+    if (out->fmt == TRAJ_VTP || out->fmt == TRAJ_VTK) {
+        size_t stem_len = strlen(set->trajectory) - 4;
+        out->stem = malloc(stem_len + 1);
+        pvd = malloc(stem_len + 5);
+        if (!out->stem || !pvd) {
+            free(pvd);
+            cli_error("out of memory");
+            return -1;
+        }
+        memcpy(out->stem, set->trajectory, stem_len);
+        out->stem[stem_len] = '\0';
+        snprintf(pvd, stem_len + 5, "%s.pvd", out->stem);
+        traj_path = pvd;
+    }
+    const char *render_path = set->render[0] && pic->kind != SINK_PATTERN ? set->render : NULL;
+    const char *paths[5] = {traj_path, set->energy[0] ? set->energy : NULL, o->checkpoint, render_path, o->plot};
+    for (int i = 0; i < 5; i++)
+        for (int j = i + 1; j < 5; j++)
+            if (same_path(paths[i], paths[j])) {
+                cli_error("%s: the trajectory, energy, checkpoint, render and plot files must be different files",
+                          paths[i]);
+                free(pvd);
+                return -1;
+            }
+    const char *energy_label = o->energy ? "--energy" : "output.energy";
+    int bad = (traj_path && outfile_open(&out->traj, traj_path, out->label) != 0)
+              || (set->energy[0] && outfile_open(&out->energy, set->energy, energy_label) != 0)
+              || (o->checkpoint && outfile_open(ck, o->checkpoint, "--checkpoint") != 0)
+              || (o->plot && outfile_open(plot, o->plot, "--plot") != 0);
+    free(pvd);
+    if (!bad && set->render[0]
+        && !(*snk = sink_open(set->render, o->render ? "--render" : "output.render", pic->width, pic->height,
+                              pic->fps)))
+        bad = 1;
+    return bad ? -1 : 0;
+}
+
+static void abort_outputs(outputs *out, outfile *ck, outfile *plot, sink *snk)
+{
+    outfile_abort(&out->traj);
+    outfile_abort(&out->energy);
+    outfile_abort(ck);
+    outfile_abort(plot);
+    sink_abort(snk);
+    free(out->stem);
+    out->stem = NULL;
+    energy_free(&out->plot);
+}
 
 int cmd_run(int argc, char **argv)
 {
@@ -278,7 +662,9 @@ int cmd_run(int argc, char **argv)
         rset->trajectory[0] = rset->energy[0] = rset->render[0] = '\0';
     }
     psys_settings *set = psys_scene_settings(scene);
-    if (apply_flags(&o, set) != 0) {
+    psys_system *sys = psys_scene_system(scene);
+    picture_opts pic;
+    if (apply_flags(&o, set, psys_system_dim(sys), &pic) != 0) {
         psys_scene_destroy(scene);
         return EXIT_BAD_INPUT;
     }
@@ -288,30 +674,29 @@ int cmd_run(int argc, char **argv)
         psys_scene_destroy(scene);
         return EXIT_BAD_INPUT;
     }
-    psys_system *sys = psys_scene_system(scene);
+    cli_stability_warning(source, scene, o.quiet);
+    if (o.threads) { /* validated by apply_flags; results are the same for every count */
+        long long nthreads = 1;
+        parse_int(o.threads, 1, 4096, &nthreads);
+        psys_system_set_threads(sys, (int)nthreads);
+    }
     outputs out;
-    outfile ck;
+    outfile ck, plot_out;
+    sink *snk = NULL;
     memset(&out, 0, sizeof out);
     memset(&ck, 0, sizeof ck);
-    const char *traj_label = o.out ? "--out" : "output.trajectory";
-    const char *energy_label = o.energy ? "--energy" : "output.energy";
-    int clash = same_path(set->trajectory, set->energy) || same_path(set->trajectory, o.checkpoint)
-                || same_path(set->energy, o.checkpoint);
-    if (clash)
-        cli_error("%s: the trajectory, energy and checkpoint files must be different files",
-                  same_path(set->energy, o.checkpoint) ? set->energy : set->trajectory);
-    if (clash || (set->trajectory[0] && outfile_open(&out.traj, set->trajectory, traj_label) != 0)
-        || (set->energy[0] && outfile_open(&out.energy, set->energy, energy_label) != 0)
-        || (o.checkpoint && outfile_open(&ck, o.checkpoint, "--checkpoint") != 0)) {
-        outfile_abort(&out.traj);
-        outfile_abort(&out.energy);
-        outfile_abort(&ck);
+    memset(&plot_out, 0, sizeof plot_out);
+    if (open_outputs(&o, set, &pic, &out, &ck, &plot_out, &snk) != 0) {
+        abort_outputs(&out, &ck, &plot_out, snk);
         psys_run_destroy(run);
         psys_scene_destroy(scene);
         return EXIT_BAD_INPUT;
     }
-    if (out.traj.fp)
+    out.plot_on = o.plot != NULL;
+    if (out.fmt == TRAJ_CSV)
         psys_csv_write_trajectory_header(out.traj.fp, psys_system_dim(sys));
+    if (out.fmt == TRAJ_VTP || out.fmt == TRAJ_VTK)
+        psys_pvd_write_header(out.traj.fp);
     if (out.energy.fp)
         psys_csv_write_energy_header(out.energy.fp);
 
@@ -321,11 +706,48 @@ int cmd_run(int argc, char **argv)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
 
-    progress prog = {!o.quiet && isatty(STDERR_FILENO), 0, now_seconds(), 0};
+    progress prog = {!o.quiet && isatty(STDERR_FILENO), 0, now_seconds(), 0, now_seconds()};
     int status = EXIT_OK, io_failed = 0;
+
+    /* Pictures: frame the run (a framing pass, unless the camera is fixed or
+     * fit=start), then draw frames at t0 + k/fps as the run passes them. The
+     * single PNG is framed and drawn at the end. */
+    renderer *ren = NULL;
+    frame_clock fc = {psys_system_time(sys), pic.fps, 0};
+    if (snk && sink_takes_frames(snk)) {
+        bounds b;
+        bounds_init(&b, &pic.cam, pic.width, pic.height);
+        bool framed = !camera_needs_run_bounds(&pic.cam) || run_bounds(scene, &pic, &b, &prog, &err) == 0;
+        if (!framed)
+            cli_error("%s: cannot frame the run: %s", o.render ? "--render" : "output.render", err.message);
+        else if (!(ren = make_renderer(&pic, set, sys, &b)))
+            cli_error("%s: out of memory for a %dx%d picture", o.render ? "--render" : "output.render", pic.width,
+                      pic.height);
+        if (!ren) {
+            abort_outputs(&out, &ck, &plot_out, snk);
+            psys_run_destroy(run);
+            psys_scene_destroy(scene);
+            return EXIT_RUN_FAILED;
+        }
+    }
+    prog.phase_start = now_seconds();
+
+    /* The single PNG is framed at the end: by the initial state (fit=start)
+     * or by the frames a video would have shown, gathered on the way. */
+    bounds still_bounds;
+    bool still = snk && !sink_takes_frames(snk);
+    bounds_init(&still_bounds, &pic.cam, pic.width, pic.height);
+    if (still) {
+        bounds_add_system(&still_bounds, sys);
+        frames_due(&fc, psys_system_time(sys));
+    }
+    int pic_failed = 0;
     long long last_written = psys_run_step_index(run);
     io_failed |= write_frame(&out, sys, last_written);
-    while (!psys_run_done(run) && !stop_signal && !io_failed) {
+    const char *render_label = o.render ? "--render" : "output.render";
+    if (ren)
+        pic_failed = draw_frames(ren, snk, sys, frames_due(&fc, psys_system_time(sys)), render_label);
+    while (!psys_run_done(run) && !stop_signal && !io_failed && !pic_failed) {
         if (psys_run_step(run, &err) != PSYS_OK) {
             status = EXIT_RUN_FAILED;
             break;
@@ -334,7 +756,11 @@ int cmd_run(int argc, char **argv)
             last_written = psys_run_step_index(run);
             io_failed |= write_frame(&out, sys, last_written);
         }
-        progress_update(&prog, run);
+        if (still && !pic.cam.fit_start && frames_due(&fc, psys_system_time(sys)) > 0)
+            bounds_add_system(&still_bounds, sys);
+        if (ren)
+            pic_failed = draw_frames(ren, snk, sys, frames_due(&fc, psys_system_time(sys)), render_label);
+        progress_update(&prog, run, "");
     }
     progress_clear(&prog);
     /* The last good state is always the final frame (interrupted or failed runs too). */
@@ -349,11 +775,35 @@ int cmd_run(int argc, char **argv)
                   source, psys_solver_cg_unconverged(solver), psys_solver_cg_worst_residual(solver));
     if (io_failed)
         cli_error("cannot write the output files (disk full?)");
+    if (out.fmt == TRAJ_VTP || out.fmt == TRAJ_VTK)
+        psys_pvd_write_footer(out.traj.fp);
     int rc = outfile_commit(&out.traj);
     rc |= outfile_commit(&out.energy);
     if (o.checkpoint)
         rc |= write_checkpoint(&ck, scene, run);
-    if ((rc || io_failed) && status == EXIT_OK)
+    if (o.plot)
+        rc |= energy_plot(&out.plot, &plot_out, &pic, source);
+    if (snk) {
+        if (!sink_takes_frames(snk)) {
+            /* The last frame. */
+            if (!pic.cam.fit_start)
+                bounds_add_system(&still_bounds, sys);
+            ren = make_renderer(&pic, set, sys, &still_bounds);
+            if (!ren || renderer_draw(ren, sys) != 0) {
+                cli_error("%s: out of memory for a %dx%d picture", render_label, pic.width, pic.height);
+                sink_abort(snk);
+                rc = -1;
+            } else {
+                rc |= sink_close(snk, ren);
+            }
+        } else {
+            rc |= sink_close(snk, ren);
+        }
+    }
+    renderer_destroy(ren);
+    free(out.stem);
+    energy_free(&out.plot);
+    if ((rc || io_failed || pic_failed) && status == EXIT_OK)
         status = EXIT_RUN_FAILED;
     if (stop_signal) {
         if (!o.quiet)

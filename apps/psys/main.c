@@ -6,9 +6,12 @@
 static const char usage[] =
     "usage:\n"
     "  psys run SCENE [--dt H] [--steps N | --duration T] [--integrator NAME]\n"
-    "                 [--every K] [--out FILE.csv] [--energy FILE.csv] [--render FILE]\n"
+    "                 [--every K] [--out FILE] [--energy FILE.csv] [--plot FILE.png]\n"
+    "                 [--render FILE] [--size WxH] [--fps F] [--camera SPEC] [--radius R]\n"
     "                 [--threads N] [--checkpoint FILE] [--resume FILE] [--quiet]\n"
     "  psys check SCENE [--save FILE]   validate, print a summary, optionally write it back\n"
+    "  psys plot FILE.csv --y COLUMNS [--x COLUMN] [--particle I] [--size WxH]\n"
+    "                 [--title TEXT] --out FILE.png   plot columns of a psys CSV file\n"
     "  psys view [SCENE]                interactive viewer (not in this version yet)\n"
     "  psys bench [CASE] [--integrator NAME] [--reps N] [--seconds S]\n"
     "                                   benchmark cases (cloth-100, cloth-256), JSON lines\n"
@@ -16,7 +19,7 @@ static const char usage[] =
     "\n"
     "SCENE is a JSON scene file (docs/scene-format.md), or - for standard input.\n"
     "Flags override the scene's values. Integrators: euler, midpoint, rk4,\n"
-    "symplectic-euler, verlet, rk45.\n"
+    "symplectic-euler, verlet, rk45, implicit-euler.\n"
     "\n"
     "run options:\n"
     "  --dt H            step size (first step for rk45)\n"
@@ -24,9 +27,16 @@ static const char usage[] =
     "  --duration T      simulate T seconds (the last step is shortened to end at T)\n"
     "  --integrator NAME solver to use\n"
     "  --every K         write every K-th step (the first and last states always)\n"
-    "  --out FILE.csv    trajectory CSV: step,t,i,x,y[,z],vx,vy[,vz]\n"
+    "  --out FILE        trajectory: .csv (step,t,i,x,y[,z],vx,vy[,vz]), .vtp or .vtk\n"
+    "                    (NAME_000000.vtp... one per frame + NAME.pvd for ParaView), .xyz\n"
     "  --energy FILE.csv energy CSV: step,t,kinetic,potential,total\n"
-    "  --render FILE     pictures and video (not in this version yet)\n"
+    "  --plot FILE.png   plot of kinetic, potential and total energy against time\n"
+    "  --render FILE     pictures: out.png (last frame), frames/%04d.png, out.gif, out.mp4\n"
+    "  --size WxH        picture and plot size in pixels (default 800x600)\n"
+    "  --fps F           frames per simulated second for --render (default 30)\n"
+    "  --camera SPEC     view, comma-separated: ortho|perspective, az=DEG, el=DEG, fov=DEG,\n"
+    "                    up=x|y|z, center=X:Y[:Z], extent=L, zoom=F, fit=run|start\n"
+    "  --radius R        particle radius in pictures (scene units; default from the scene)\n"
     "  --threads N       worker threads (results never depend on N)\n"
     "  --checkpoint FILE write the complete state at the end (or on SIGINT/SIGTERM)\n"
     "  --resume FILE     continue from a checkpoint; --steps/--duration count from it\n"
@@ -57,6 +67,8 @@ int main(int argc, char **argv)
         return cmd_check(argc - 1, argv + 1);
     if (strcmp(cmd, "bench") == 0)
         return cmd_bench(argc - 1, argv + 1);
+    if (strcmp(cmd, "plot") == 0)
+        return cmd_plot(argc - 1, argv + 1);
     if (strcmp(cmd, "view") == 0) {
         cli_error("view: the interactive viewer is not in this version of psys yet");
         return EXIT_BAD_INPUT;

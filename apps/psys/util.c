@@ -116,6 +116,20 @@ void outfile_abort(outfile *o)
     o->tmp = o->path = NULL;
 }
 
+void cli_stability_warning(const char *source, psys_scene *scene, int quiet)
+{
+    const psys_settings *set = psys_scene_settings(scene);
+    if (quiet || strcmp(set->integrator, "implicit-euler") == 0 || strcmp(set->integrator, "rk45") == 0)
+        return;
+    double omega = psys_system_stiffest_omega(psys_scene_system(scene));
+    if (!(omega > 0) || !(set->dt * omega > 2.0))
+        return;
+    cli_error("%s: warning: dt = %g is above the stability limit 2/omega_max = %.3g of %s for the stiffest "
+              "spring (omega_max = %.4g rad/s); the run may blow up: use --integrator implicit-euler, or "
+              "--dt %.2g or smaller",
+              source, set->dt, 2.0 / omega, set->integrator, omega, 2.0 / omega);
+}
+
 int parse_nonneg(const char *s, double *out)
 {
     char *end;

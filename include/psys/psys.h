@@ -245,6 +245,11 @@ size_t psys_system_spring_count(const psys_system *sys);
 /** Parameters of spring k (any out pointer may be NULL). */
 psys_status psys_system_spring(const psys_system *sys, size_t k, size_t *a, size_t *b,
                                double *ks, double *kd, double *rest);
+/** Stability estimate for explicit solvers: ω_max = max over springs of
+ *  sqrt(2 ks (1/m_a + 1/m_b)), with 1/m = 0 for fixed and controlled
+ *  particles (0 when there are no springs). Explicit solvers are expected
+ *  to go unstable for dt > 2/ω_max (src/stability.c, docs/trust.md). */
+double psys_system_stiffest_omega(const psys_system *sys);
 
 /** The force class of gravity objects. */
 extern const psys_force_class psys_gravity_class;
@@ -263,7 +268,8 @@ extern const psys_force_class psys_spring_class;
  * same machinery. Its Jacobian (for implicit solvers) is the Gauss–Newton
  * approximation ∂f/∂x ≈ -k_s JᵀJ, ∂f/∂v = -k_d JᵀJ (J = ∂C/∂x): it ignores
  * the second derivatives of C, so it is exact only for affine C (coincide,
- * point-on-plane) and drops the k_s C·∂²C/∂x² term otherwise. */
+ * point-on-plane); otherwise it drops the (k_s C + k_d Ċ)·∂²C/∂x² and
+ * k_d Jᵀ ∂Ċ/∂x terms. */
 
 /** Most particles one behaviour function may depend on (k). */
 #define PSYS_BEHAVIOR_MAX_PARTICLES 8
@@ -566,6 +572,111 @@ bool psys_system_spring_muscle(const psys_system *sys, size_t k, double *amplitu
 double psys_system_spring_rest_length(const psys_system *sys, size_t k, double t);
 
 /* ------------------------------------------------------------------ */
+/* Spatial interaction (notes §4.3): pair forces, charges, periodic    */
+/* boxes, threads. docs/scene-format.md "Pair forces" has the laws.    */
+/* ------------------------------------------------------------------ */
+
+/** Pair law: the force between every two particles as a function of their distance r. */
+typedef enum psys_pair_law {
+    PSYS_PAIR_GRAVITY = 0,     /**< U = -G m_i m_j / sqrt(r² + softening²) */
+    PSYS_PAIR_COULOMB,         /**< U = k q_i q_j / r (charges: psys_system_set_charge) */
+    PSYS_PAIR_LENNARD_JONES,   /**< U = 4ε[(σ/r)¹² - (σ/r)⁶] for r < cutoff (minus U(cutoff) with shift), else 0 */
+    PSYS_PAIR_SOFT_REPULSION,  /**< U = ½ k (radius - r)² for r < radius, else 0 */
+    PSYS_PAIR_USER             /**< force and potential from a callback (no scene form) */
+} psys_pair_law;
+
+/** How pairs are found. */
+typedef enum psys_pair_method {
+    PSYS_PAIR_AUTO = 0,        /**< grid when the law has a cutoff, else direct */
+    PSYS_PAIR_DIRECT,          /**< all pairs, O(n²), blocked for cache */
+    PSYS_PAIR_GRID,            /**< cell lists + Verlet neighbour lists with a skin, O(n); laws with a cutoff */
+    PSYS_PAIR_BARNES_HUT       /**< quadtree (2-D) / octree (3-D), opening angle theta; gravity and coulomb */
+} psys_pair_method;
+
+/** A user pair law: return F(r) = -dU/dr (> 0 repels) at distance r > 0 and,
+ *  when u is not NULL, store U(r) there. Called concurrently from several
+ *  threads: it must not modify shared state. */
+typedef double (*psys_pair_fn)(void *ctx, double r, double *u);
+
+/** Definition of a pair force (start from psys_pair_def_default()). The
+ *  force acts between every two different particles of the system, fixed
+ *  and controlled ones included; coincident particles (r = 0) exert no force
+ *  on each other (and no energy, except softened gravity's -G m m/softening). */
+typedef struct psys_pair_def {
+    psys_pair_law law;         /**< the law (default gravity) */
+    psys_pair_method method;   /**< default PSYS_PAIR_AUTO */
+    double G;                  /**< gravity: constant (default 1) */
+    double softening;          /**< gravity: Plummer softening >= 0 (default 0 = Newtonian) */
+    double k;                  /**< coulomb: constant; soft-repulsion: stiffness >= 0 (default 1) */
+    double epsilon, sigma;     /**< lennard-jones: well depth >= 0, size > 0 (default 1, 1) */
+    double cutoff;             /**< lennard-jones: > 0, default (<= 0) 2.5·sigma; user: 0 = none */
+    bool shift;                /**< lennard-jones: subtract U(cutoff) so U is 0 there (default false) */
+    double radius;             /**< soft-repulsion: interaction radius > 0 (default 1) */
+    double skin;               /**< grid: Verlet skin >= 0; < 0 (default) = 0.1·cutoff */
+    double theta;              /**< barnes-hut: opening angle >= 0 (default 0.5; 0 = exact) */
+    psys_pair_fn fn;           /**< user: the law */
+    void *ctx;                 /**< user: passed to fn; must outlive the system */
+} psys_pair_def;
+
+/** Defaults as documented on psys_pair_def. */
+psys_pair_def psys_pair_def_default(void);
+/** Add a pair force (one force object; its index goes to *force_index, may
+ *  be NULL). Neighbour/cell/tree storage is allocated here for the current
+ *  particles and grows only when a rebuild needs more. */
+psys_status psys_system_add_pair(psys_system *sys, const psys_pair_def *def, size_t *force_index);
+/** Definition of force object i if it is a pair force (defaults and method
+ *  resolved); PSYS_ERR_INVALID otherwise. */
+psys_status psys_system_pair(const psys_system *sys, size_t i, psys_pair_def *def);
+/** Scene name of a law ("lennard-jones", ...), NULL for PSYS_PAIR_USER. */
+const char *psys_pair_law_name(psys_pair_law law);
+/** Scene name of a method ("direct", "grid", "barnes-hut"; "auto"). */
+const char *psys_pair_method_name(psys_pair_method method);
+
+/** Counters of a pair force, for tests and benchmarks. */
+typedef struct psys_pair_stats {
+    size_t evaluations;  /**< force/energy/Jacobian evaluations so far */
+    size_t rebuilds;     /**< grid: neighbour-list builds; barnes-hut: tree builds */
+    size_t pairs;        /**< grid: pairs closer than cutoff + skin at the last build (each counted once) */
+    size_t cells;        /**< grid: cells at the last build */
+    size_t nodes;        /**< barnes-hut: tree nodes at the last build */
+    size_t fallbacks;    /**< evaluations done by the direct method because storage could not grow */
+    size_t partial;      /**< grid: force evaluations that recomputed only the particles near moved ones */
+} psys_pair_stats;
+/** Counters of pair force object i. */
+psys_status psys_system_pair_stats(const psys_system *sys, size_t i, psys_pair_stats *stats);
+
+/** The force class of pair forces with built-in laws (scenes can hold them). */
+extern const psys_force_class psys_pair_class;
+/** The force class of pair forces with user laws (no scene form). */
+extern const psys_force_class psys_pair_user_class;
+
+/** Charge of particle i for coulomb pair forces (default 0). */
+psys_status psys_system_set_charge(psys_system *sys, size_t i, double q);
+/** Charge of particle i (0 if never set or no such particle). */
+double psys_system_charge(const psys_system *sys, size_t i);
+
+/** Set the simulation box: lo < hi on every axis; periodic[k] makes axis k
+ *  periodic (positions wrap into [lo, hi) after every step taken by
+ *  psys_system_advance, velocities unchanged; pair forces use the minimum
+ *  image). Fails if a pair force has no cutoff or a cutoff >= half the box
+ *  on a periodic axis. lo == NULL removes the box. */
+psys_status psys_system_set_box(psys_system *sys, const double *lo, const double *hi, const bool *periodic);
+/** True if the system has a box; its corners and flags go to the out pointers (each may be NULL). */
+bool psys_system_box(const psys_system *sys, double *lo, double *hi, bool *periodic);
+/** Wrap free particles' positions into the box on periodic axes (done by psys_system_advance). */
+void psys_system_wrap_positions(psys_system *sys);
+
+/** Threads for parallel force evaluation (0 = the OpenMP default). Results
+ *  are bit-identical for every thread count. Loops too small to gain run on
+ *  one thread (with an explicit count: below about a thousand pair
+ *  evaluations; by default: below about 65,000). */
+psys_status psys_system_set_threads(psys_system *sys, int threads);
+/** Threads the system asks for (0 = the OpenMP default). */
+int psys_system_threads(const psys_system *sys);
+/** Threads large evaluations use (1 in a build without OpenMP). */
+int psys_system_effective_threads(const psys_system *sys);
+
+/* ------------------------------------------------------------------ */
 /* Scenes (JSON, DESIGN §2)                                            */
 /* ------------------------------------------------------------------ */
 
@@ -583,6 +694,7 @@ typedef struct psys_settings {
     char render[1024];     /**< output.render ("" for none) */
     double cg_tolerance;   /**< implicit-euler: relative CG residual per step */
     long long cg_max_iterations; /**< implicit-euler: CG iteration cap per step */
+    double render_radius;  /**< output.radius: particle radius for pictures (scene units; 0 = automatic) */
 } psys_settings;
 
 /** Clock and solver state saved in a checkpoint. */
@@ -660,6 +772,73 @@ int psys_csv_write_trajectory_frame(FILE *fp, const psys_system *sys, long long 
 int psys_csv_write_energy_header(FILE *fp);
 /** Write one energy row. */
 int psys_csv_write_energy_frame(FILE *fp, const psys_system *sys, long long step);
+
+/* ---- Trajectory formats for ParaView, OVITO and ASE (docs/cli.md) ----
+ * One call writes one frame; the caller owns the files (the CLI writes each
+ * under a temporary name and renames it when complete). Numbers are %.17g;
+ * 2-D systems are written with z = 0. All return 0, or -1 on a write error. */
+
+/** VTK XML PolyData (ASCII inline data), one whole file per frame: particles
+ *  as points (and vertex cells) with point data `velocity` (3 components),
+ *  `mass`, `flags` (PSYS_PARTICLE_* bits) and `index`; springs as lines; field
+ *  data `TimeValue` and `step`. */
+int psys_vtp_write_frame(FILE *fp, const psys_system *sys, long long step);
+/** The same frame in the legacy VTK format (ASCII POLYDATA, version 3.0). */
+int psys_vtk_write_frame(FILE *fp, const psys_system *sys, long long step);
+/** ParaView data series (.pvd): the opening lines. */
+int psys_pvd_write_header(FILE *fp);
+/** One .pvd entry: frame file `file` (relative to the .pvd, XML-escaped here) at time t. */
+int psys_pvd_write_entry(FILE *fp, double t, const char *file);
+/** The closing lines of a .pvd file. */
+int psys_pvd_write_footer(FILE *fp);
+/** One frame of extended XYZ: the particle count, then a comment line
+ *  `Properties=species:S:1:pos:R:3:velo:R:3:mass:R:1:id:I:1:flags:I:1 Time=t
+ *  step=k pbc="F F F"`, then a row per particle (species is always X). */
+int psys_xyz_write_frame(FILE *fp, const psys_system *sys, long long step);
+
+/* ---- Drawing (Box2D b2DebugDraw style) ----
+ * The library never draws: psys_system_draw walks the system and calls the
+ * callbacks of a psys_draw that a renderer implements (the CLI's headless
+ * cairo renderer; an OpenGL viewer). Points are dim numbers in scene units.
+ * Initialise with psys_draw d = {0} (or memset) and set what you draw: NULL
+ * callbacks are skipped, and members added in later versions stay NULL. */
+
+/** A renderer seen by psys_system_draw. Calls come in this order: begin,
+ *  every plane, every guide, every spring, every link, every particle (in
+ *  index order), end. */
+typedef struct psys_draw {
+    void *ctx;      /**< passed back to every callback */
+    /** Radius, in scene units, of a particle of the system's typical
+     *  (geometric-mean) mass; particle i gets radius·(m_i/m_typical)^(1/3),
+     *  clamped to [radius/2, 2·radius] (equal masses: exactly radius). */
+    double radius;
+    /** Called first: dimension (2 or 3) and the system's time. */
+    void (*begin)(void *ctx, int dim, double t);
+    /** A plane (a line in 2-D) through point with unit normal (pointing to the allowed side). */
+    void (*plane)(void *ctx, const double *point, const double *normal);
+    /** A spring from a to b. strain = (|b - a| - r)/r with r its current rest
+     *  length (a muscle's r(t)); 0 when r is 0. */
+    void (*spring)(void *ctx, const double *a, const double *b, double strain);
+    /** Particle i at x with its radius; flags are PSYS_PARTICLE_FIXED / PSYS_PARTICLE_CONTROLLED. */
+    void (*particle)(void *ctx, size_t i, const double *x, double radius, unsigned flags);
+    /** Called last. */
+    void (*end)(void *ctx);
+    /** A behaviour function (soft constraint) joining two particles:
+     *  `distance`, `coincide`, each arm of an `angle` (a-b, b-c), and
+     *  consecutive particles of a user function. */
+    void (*link)(void *ctx, const double *a, const double *b);
+    /** What a one-particle behaviour holds its particle to: a plane (line in
+     *  2-D) through point with unit normal for `point-on-plane` (radius < 0),
+     *  or a sphere (circle) of radius about point for `point-on-sphere` (normal NULL). */
+    void (*guide)(void *ctx, const double *point, const double *normal, double radius);
+} psys_draw;
+
+/** Draw the current state of sys through draw (see psys_draw). */
+psys_status psys_system_draw(const psys_system *sys, const psys_draw *draw);
+/** Axis-aligned bounds of the particle positions into lo and hi (dim numbers
+ *  each); PSYS_ERR_INVALID (lo = hi = 0) when the system has no particles. */
+psys_status psys_system_bounds(const psys_system *sys, double *lo, double *hi);
+/* ---- end of drawing ---- */
 
 #ifdef __cplusplus
 }

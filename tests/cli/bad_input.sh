@@ -103,8 +103,9 @@ bad_scene array_trailing_comma $'{"psys": 1,\n "particles": [{"x": [0, 0, 0]},]}
     'line 2, column 33: malformed JSON (got "]}")'
 bad_scene trailing_garbage $'{"psys": 1}\n x\n' \
     'line 2, column 2: malformed JSON (got "x")'
+# (control characters in messages are shown as "?": a message is one line)
 bad_scene control_byte $'{"psys": 1}\n\x01' \
-    'line 2, column 1: malformed JSON (got "'$'\x01''")'
+    'line 2, column 1: malformed JSON (got "?")'
 # A NUL byte cannot live in a bash string: write the file directly.
 printf '{"psys": 1}\0' >nul_byte.json
 prepare
@@ -345,7 +346,7 @@ bad_flags 'duration and steps' 'run: give either --steps or --duration, not both
 bad_flags 'missing value' '--dt needs a value (see psys --help)' --dt
 bad_flags 'missing value (steps)' '--steps needs a value (see psys --help)' --steps
 bad_flags 'two scenes' 'run: more than one scene given (good.json and other.json)' other.json
-bad_flags 'unknown format' '--out x.txt: unknown trajectory format (got ".txt"; use .csv)' --out x.txt
+bad_flags 'unknown format' '--out x.txt: unknown trajectory format (got ".txt"; use .csv, .vtp, .vtk or .xyz)' --out x.txt
 
 # Bad flags must fail before the scene is even looked at... or after: either
 # way a bad scene plus a good flag still writes nothing (covered above), and

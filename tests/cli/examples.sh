@@ -334,6 +334,13 @@ case "$1" in
     check_csv demo-out/cloth.csv "step,t,i,x,y,z,vx,vy,vz"
     check_csv demo-out/cloth-energy.csv "step,t,kinetic,potential,total"
     grep -q '^run: .* 151 frames written' <<<"$out" || fail "demo summary does not report 151 frames"
+    [ -s demo-out/cloth-energy.png ] || fail "scripts/demo.sh did not write demo-out/cloth-energy.png"
+    if command -v ffmpeg >/dev/null 2>&1; then video=demo-out/cloth.mp4; else video=demo-out/cloth.gif; fi
+    [ -s "$video" ] || fail "scripts/demo.sh did not write $video"
+    if [ "$video" = demo-out/cloth.mp4 ] && command -v ffprobe >/dev/null 2>&1; then
+      frames=$(ffprobe -v error -count_frames -select_streams v:0 -show_entries stream=nb_read_frames -of csv=p=0 "$video")
+      [ "$frames" = 91 ] || fail "demo video has $frames frames, expected 91 (3 s at 30 fps)"
+    fi
     ;;
   --docs)
     count=0

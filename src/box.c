@@ -1,0 +1,220 @@
+/* The simulation box (DESIGN §2 `box`), per-particle charges and the thread
+ * count: system-wide settings that pair forces read.
+ *
+ * A periodic axis wraps free particles' positions into [lo, hi) after every
+ * accepted step (psys_system_advance; velocities unchanged) and pair forces
+ * measure distances by the minimum image. Non-periodic axes of a box have
+ * no effect (use planes for walls). */
+#include "internal.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef PSYS_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+/* ---- charges ---- */
+
+psys_status psys_system_set_charge(psys_system *s, size_t i, double q)
+{
+    if (i >= s->n)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "no particle %zu", i);
+    if (!isfinite(q))
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "charge must be finite (got %g)", q);
+    if (i >= s->charge_cap) {
+        size_t cap = s->charge_cap ? s->charge_cap : 16;
+        while (cap <= i)
+            cap *= 2;
+        if (cap < s->cap)
+            cap = s->cap;
+        double *p = psys__realloc(s->charge, cap, sizeof(double));
+        if (!p)
+            return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory setting a charge");
+        s->charge = p;
+        s->charge_cap = cap;
+    }
+    for (size_t k = s->ncharge; k < i; k++)
+        s->charge[k] = 0.0;
+    s->charge[i] = q;
+    if (i >= s->ncharge)
+        s->ncharge = i + 1;
+    return PSYS_OK;
+}
+
+double psys_system_charge(const psys_system *s, size_t i)
+{
+    return i < s->ncharge && i < s->n ? s->charge[i] : 0.0;
+}
+
+/* ---- box ---- */
+
+psys_status psys_system_set_box(psys_system *s, const double *lo, const double *hi, const bool *periodic)
+{
+    int d = s->dim;
+    psys__box b;
+    memset(&b, 0, sizeof b);
+    if (lo) {
+        if (!hi || !periodic)
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "a box needs lo, hi and periodic");
+        b.on = true;
+        for (int k = 0; k < d; k++) {
+            if (!isfinite(lo[k]) || !isfinite(hi[k]))
+                return psys__fail(&s->err, PSYS_ERR_INVALID, "box corners must be finite");
+            if (!(hi[k] > lo[k]) || !isfinite(hi[k] - lo[k]))
+                return psys__fail(&s->err, PSYS_ERR_INVALID,
+                                  "box hi must be greater than lo on every axis (axis %d: lo %g, hi %g)", k, lo[k],
+                                  hi[k]);
+            b.lo[k] = lo[k];
+            b.hi[k] = hi[k];
+            b.len[k] = hi[k] - lo[k];
+            b.periodic[k] = periodic[k];
+            b.any_periodic |= periodic[k];
+        }
+    }
+    for (size_t i = 0; i < s->nforces; i++) {
+        const psys_force_class *cls = s->forces[i].cls;
+        if (cls != &psys_pair_class && cls != &psys_pair_user_class)
+            continue;
+        char msg[300];
+        if (psys__pair_check_box(s->forces[i].data, &b, msg, sizeof msg) != PSYS_OK)
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "pair force %zu: %s", i, msg);
+    }
+    s->box = b;
+    return PSYS_OK;
+}
+
+bool psys_system_box(const psys_system *s, double *lo, double *hi, bool *periodic)
+{
+    for (int k = 0; k < s->dim; k++) {
+        if (lo) lo[k] = s->box.lo[k];
+        if (hi) hi[k] = s->box.hi[k];
+        if (periodic) periodic[k] = s->box.periodic[k];
+    }
+    return s->box.on;
+}
+
+/* x into [lo, hi): subtract whole box lengths; a result that rounds onto hi
+ * (x a hair below lo) is taken as lo. */
+static double wrap1(double x, double lo, double hi, double len)
+{
+    if (x >= lo && x < hi)
+        return x;
+    if (!isfinite(x))
+        return x; /* left for the solver's non-finite check */
+    double w = x - len * floor((x - lo) / len);
+    if (w >= hi)
+        w -= len;
+    if (w < lo)
+        w = lo;
+    return w;
+}
+
+void psys__box_wrap(psys_system *s)
+{
+    if (!s->box.any_periodic)
+        return;
+    int d = s->dim;
+    for (size_t i = 0; i < s->n; i++) {
+        if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+            continue;
+        for (int k = 0; k < d; k++)
+            if (s->box.periodic[k])
+                s->x[i * d + k] = wrap1(s->x[i * d + k], s->box.lo[k], s->box.hi[k], s->box.len[k]);
+    }
+}
+
+void psys_system_wrap_positions(psys_system *s) { psys__box_wrap(s); }
+
+/* ---- threads ---- */
+
+psys_status psys_system_set_threads(psys_system *s, int threads)
+{
+    if (threads < 0)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "threads must be >= 0 (got %d)", threads);
+    s->threads = threads;
+    return PSYS_OK;
+}
+
+int psys_system_threads(const psys_system *s) { return s->threads; }
+
+int psys_system_effective_threads(const psys_system *s)
+{
+#ifdef PSYS_HAVE_OPENMP
+    return s->threads > 0 ? s->threads : omp_get_max_threads();
+#else
+    (void)s;
+    return 1;
+#endif
+}
+
+/* ---- scene form: "box": {"lo": [..], "hi": [..], "periodic": [bool × dim]} ---- */
+
+psys_status psys__parse_box(psys__parse *p, const cJSON *root)
+{
+    static const char *const keys[] = {"lo", "hi", "periodic", NULL};
+    psys_system *sys = psys__parse_system(p);
+    const cJSON *box = cJSON_GetObjectItemCaseSensitive(root, "box");
+    if (!box)
+        return PSYS_OK;
+    if (!cJSON_IsObject(box))
+        return psys__parse_fail(p, "box", box, "must be an object {\"lo\", \"hi\", \"periodic\"}");
+    int d = sys->dim;
+    double lo[3], hi[3];
+    bool periodic[3] = {true, true, true};
+    psys_status st;
+    if ((st = psys__parse_keys(p, box, "box", keys)) != PSYS_OK
+        || (st = psys__parse_vec(p, box, "box", "lo", NULL, lo)) != PSYS_OK
+        || (st = psys__parse_vec(p, box, "box", "hi", NULL, hi)) != PSYS_OK)
+        return st;
+    for (int k = 0; k < d; k++)
+        if (!(hi[k] > lo[k]) || !isfinite(hi[k] - lo[k])) {
+            char kp[64];
+            snprintf(kp, sizeof kp, "box.hi[%d]", k);
+            const cJSON *h = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(box, "hi"), k);
+            return psys__parse_fail(p, kp, h, "must be greater than box.lo[%d] (%.17g)", k, lo[k]);
+        }
+    const cJSON *per = cJSON_GetObjectItemCaseSensitive(box, "periodic");
+    if (per) {
+        if (!cJSON_IsArray(per) || cJSON_GetArraySize(per) != d)
+            return psys__parse_fail(p, "box.periodic", per, "must be an array of %d true/false values (dim is %d)",
+                                    d, d);
+        int k = 0;
+        for (const cJSON *it = per->child; it; it = it->next, k++) {
+            if (!cJSON_IsBool(it)) {
+                char kp[64];
+                snprintf(kp, sizeof kp, "box.periodic[%d]", k);
+                return psys__parse_fail(p, kp, it, "must be true or false");
+            }
+            periodic[k] = cJSON_IsTrue(it);
+        }
+    }
+    if (psys_system_set_box(sys, lo, hi, periodic) != PSYS_OK)
+        return psys__parse_fail(p, "box", NULL, "%s", psys_system_last_error(sys));
+    return PSYS_OK;
+}
+
+bool psys__save_box(const psys_system *sys, cJSON *root)
+{
+    if (!sys->box.on)
+        return true;
+    int d = sys->dim;
+    cJSON *o = cJSON_AddObjectToObject(root, "box");
+    if (!o || !cJSON_AddItemToObjectCS(o, "lo", psys__vec_json(sys->box.lo, d))
+        || !cJSON_AddItemToObjectCS(o, "hi", psys__vec_json(sys->box.hi, d)))
+        return false;
+    cJSON *per = cJSON_AddArrayToObject(o, "periodic");
+    if (!per)
+        return false;
+    for (int k = 0; k < d; k++) {
+        cJSON *b = cJSON_CreateBool(sys->box.periodic[k]);
+        if (!b || !cJSON_AddItemToArray(per, b)) {
+            cJSON_Delete(b);
+            return false;
+        }
+    }
+    return true;
+}

@@ -1,0 +1,925 @@
+/* Pair forces (notes §4.3, "spatial interaction"): one force object holding
+ * a pair law (gravity, coulomb, lennard-jones, soft-repulsion or a user
+ * callback) and a method for finding pairs (direct, grid, barnes-hut).
+ *
+ * Laws, with r = |x_i - x_j| and the force on i equal to g(r)·(x_i - x_j):
+ *   gravity        U = -G m_i m_j / s,  s = sqrt(r² + softening²),  g = -G m_i m_j / s³
+ *   coulomb        U = k q_i q_j / r,                                g = k q_i q_j / r³
+ *   lennard-jones  U = 4ε[(σ/r)¹² - (σ/r)⁶] - shift for r < rc, else 0,
+ *                  g = 24ε[2(σ/r)¹² - (σ/r)⁶] / r²,  shift = U(rc) if "shift" else 0
+ *   soft-repulsion U = ½ k (R - r)² for r < R, else 0,               g = k (R - r) / r
+ *   user           F(r) = -dU/dr from a callback,                     g = F(r) / r
+ * A pair at r = 0 has no direction and exerts no force (see psys_pair_def).
+ *
+ * Methods: `direct` visits all pairs in cache blocks; `grid` (pair_grid.c)
+ * keeps Verlet neighbour lists built from cell lists, rebuilt only when the
+ * two largest displacements add up to the skin; `barnes-hut` (pair_bh.c) walks a
+ * quadtree/octree with opening angle theta. See pair.h for why results are
+ * identical for every thread count and why grid equals direct bit for bit.
+ * Storage is allocated when the force is created and grows only when an
+ * evaluation finds more particles (or a rebuild needs more room); if it
+ * cannot grow, that evaluation runs the direct method, which needs none and
+ * gives the same forces. */
+#include "pair.h"
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define DIRECT_IB 16   /* particles i per block */
+#define DIRECT_JB 512  /* partners j per block */
+
+psys_pair_def psys_pair_def_default(void)
+{
+    psys_pair_def d;
+    memset(&d, 0, sizeof d);
+    d.law = PSYS_PAIR_GRAVITY;
+    d.method = PSYS_PAIR_AUTO;
+    d.G = 1;
+    d.softening = 0;
+    d.k = 1;
+    d.epsilon = 1;
+    d.sigma = 1;
+    d.cutoff = 0;
+    d.shift = false;
+    d.radius = 1;
+    d.skin = -1;
+    d.theta = 0.5;
+    return d;
+}
+
+static const char *const law_names[] = {"gravity", "coulomb", "lennard-jones", "soft-repulsion"};
+#define NLAWS 4
+
+const char *psys_pair_law_name(psys_pair_law law)
+{
+    return (int)law >= 0 && (int)law < NLAWS ? law_names[law] : NULL;
+}
+
+const char *psys_pair_method_name(psys_pair_method m)
+{
+    switch (m) {
+    case PSYS_PAIR_AUTO: return "auto";
+    case PSYS_PAIR_DIRECT: return "direct";
+    case PSYS_PAIR_GRID: return "grid";
+    case PSYS_PAIR_BARNES_HUT: return "barnes-hut";
+    }
+    return NULL;
+}
+
+static bool law_has_cutoff(const psys_pair_def *d)
+{
+    return d->law == PSYS_PAIR_LENNARD_JONES || d->law == PSYS_PAIR_SOFT_REPULSION
+           || (d->law == PSYS_PAIR_USER && d->cutoff > 0);
+}
+
+/* ---- storage ---- */
+
+static void pair_destroy(void *data)
+{
+    pair_force *p = data;
+    if (!p)
+        return;
+    free(p->epart);
+    free(p->wbuf);
+    psys__pair_grid_free(&p->grid);
+    psys__pair_bh_free(&p->bh);
+    free(p);
+}
+
+/* Per-particle buffers for at least n particles (never shrinks). */
+static bool pair_reserve(pair_force *p, size_t n)
+{
+    if (n <= p->cap)
+        return true;
+    size_t cap = p->cap ? p->cap : 16;
+    while (cap < n)
+        cap *= 2;
+    if (cap > UINT32_MAX)
+        return false;
+    double *ep = psys__realloc(p->epart, cap, sizeof(double));
+    if (!ep)
+        return false;
+    p->epart = ep;
+    if (p->law == PSYS_PAIR_COULOMB) {
+        double *wb = psys__realloc(p->wbuf, cap, sizeof(double));
+        if (!wb)
+            return false;
+        p->wbuf = wb;
+    }
+    if (p->def.method == PSYS_PAIR_GRID && !psys__pair_grid_reserve(&p->grid, cap, p->dim))
+        return false;
+    if (p->def.method == PSYS_PAIR_BARNES_HUT && !psys__pair_bh_reserve(&p->bh, cap))
+        return false;
+    p->cap = cap;
+    return true;
+}
+
+/* ---- evaluation ---- */
+
+/* Weights of the particles: masses (gravity), charges (coulomb), none. */
+static const double *pair_weights(pair_force *p, const psys_force_eval *e, bool have_storage)
+{
+    if (p->law == PSYS_PAIR_GRAVITY)
+        return e->mass;
+    if (p->law != PSYS_PAIR_COULOMB)
+        return NULL;
+    const psys_system *s = p->sys;
+    if (s->ncharge >= e->n)
+        return s->charge;
+    if (!have_storage)
+        return NULL; /* no buffer: the fallback evaluates the charged prefix only */
+    size_t nq = s->ncharge;
+    if (nq)
+        memcpy(p->wbuf, s->charge, nq * sizeof(double));
+    for (size_t i = nq; i < e->n; i++)
+        p->wbuf[i] = 0.0;
+    return p->wbuf;
+}
+
+/* The evaluation loops are instantiated for every law, dimension and mode
+ * (forces or energies) by macros, so that each parallel loop body sees them
+ * as constants (OpenMP outlines the body before inlining could propagate
+ * them). */
+
+/* Direct method, one block of DIRECT_IB particles i: forces added into f
+ * (want_f), per-particle energies into ep (want_u; ep NULL: added to *total
+ * in ascending i, serial callers only). */
+PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, const pair_image *m,
+                              const double *x, const double *w, size_t n, size_t b, const bool want_f, double *f,
+                              const bool want_u, double *ep, double *total)
+{
+    size_t i0 = b * DIRECT_IB, i1 = i0 + DIRECT_IB < n ? i0 + DIRECT_IB : n;
+    double acc[DIRECT_IB][3], us[DIRECT_IB];
+    memset(acc, 0, sizeof acc);
+    memset(us, 0, sizeof us);
+    for (size_t j0 = 0; j0 < n; j0 += DIRECT_JB) {
+        size_t j1 = j0 + DIRECT_JB < n ? j0 + DIRECT_JB : n;
+        for (size_t i = i0; i < i1; i++)
+            pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
+    }
+    for (size_t i = i0; i < i1; i++) {
+        if (want_f)
+            for (int k = 0; k < d; k++)
+                f[i * d + k] += acc[i - i0][k];
+        if (want_u) {
+            if (ep)
+                ep[i] = us[i - i0];
+            else
+                *total += us[i - i0];
+        }
+    }
+}
+
+typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                          double *f, double *ep, double *total, int nt);
+
+#define DIRECT_FN(name, LAW, D, WF, WU)                                                                      \
+    static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
+                     double *f, double *ep, double *total, int nt)                                           \
+    {                                                                                                        \
+        size_t nblocks = (n + DIRECT_IB - 1) / DIRECT_IB;                                                    \
+        (void)nt;                                                                                            \
+        PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))                          \
+        for (size_t b = 0; b < nblocks; b++)                                                                 \
+            direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total);                                    \
+    }
+
+/* Grid method: gather over the neighbour lists, for every particle or only
+ * the marked ones; forces (or energies) are stored into out, not added. */
+typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                        const unsigned char *mark, double *out, int nt);
+
+#define GRID_FN(name, LAW, D, WF, WU)                                                                        \
+    static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
+                     const unsigned char *mark, double *out, int nt)                                         \
+    {                                                                                                        \
+        const size_t *st = p->grid.nb_start;                                                                 \
+        const uint32_t *num = p->grid.nb_num, *nb = p->grid.nb;                                              \
+        (void)nt;                                                                                            \
+        PSYS_OMP(omp parallel for schedule(dynamic, 64) num_threads(nt) if (nt > 1))                         \
+        for (size_t i = 0; i < n; i++) {                                                                     \
+            if (mark && !mark[i])                                                                            \
+                continue;                                                                                    \
+            double acc[3] = {0, 0, 0}, us = 0;                                                               \
+            pair_gather_list(p, LAW, D, m, x, w, i, nb + st[i], num[i], WF, acc, WU, &us);                   \
+            if (WF)                                                                                          \
+                for (int k = 0; k < D; k++)                                                                  \
+                    out[i * D + k] = acc[k];                                                                 \
+            if (WU)                                                                                          \
+                out[i] = us;                                                                                 \
+        }                                                                                                    \
+    }
+
+/* Grid method with half lists (one thread): a sweep over i in increasing
+ * order evaluates each pair once and adds its force to i and its opposite
+ * to j. Particle j thus receives its contributions in increasing partner
+ * order (partners below j while the sweep passes them, then its own list),
+ * exactly as the full-list gather adds them, so the results are the same
+ * bits. With mark, only marked particles' entries of out are recomputed
+ * (pairs with no marked end are skipped); the others are left as they are. */
+#define HALF_FN(name, LAW, D, WF, WU)                                                                        \
+    static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
+                     const unsigned char *mark, double *out, int nt)                                         \
+    {                                                                                                        \
+        if (mark)                                                                                            \
+            half_sweep(p, LAW, D, m, x, w, n, mark, out, WF, WU);                                            \
+        else                                                                                                 \
+            half_sweep(p, LAW, D, m, x, w, n, NULL, out, WF, WU);                                            \
+        (void)nt;                                                                                            \
+    }
+
+PAIR_INLINE void half_sweep(const pair_force *p, const int LAW, const int D, const pair_image *m, const double *x,
+                            const double *w, size_t n, const unsigned char *mark, double *out, const bool WF,
+                            const bool WU)
+{
+    const size_t *st = p->grid.nb_start;
+    const uint32_t *num = p->grid.nb_num, *nb = p->grid.nb;
+    const size_t stride = WF ? (size_t)D : 1;
+    for (size_t i = 0; i < n; i++)
+        if (!mark || mark[i])
+            for (size_t k = 0; k < stride; k++)
+                out[i * stride + k] = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        const bool mi = !mark || mark[i];
+        const uint32_t *js = nb + st[i];
+        const size_t nj = num[i];
+        double xi[3] = {0, 0, 0}, a[3] = {0, 0, 0}, us = 0;
+        for (int k = 0; k < D; k++)
+            xi[k] = x[i * D + k];
+        if (mi) {
+            if (WF)
+                for (int k = 0; k < D; k++)
+                    a[k] = out[i * D + k];
+            if (WU)
+                us = out[i];
+        }
+        const double wi = w ? w[i] : 1.0;
+        for (size_t t = 0; t < nj; t++) {
+            const size_t j = js[t];
+            const bool mj = !mark || mark[j];
+            if (!mi && !mj)
+                continue;
+            double dx[3], r2 = 0, u = 0;
+            for (int k = 0; k < D; k++) {
+                dx[k] = pair_delta(m, k, xi[k] - x[j * D + k]);
+                r2 += dx[k] * dx[k];
+            }
+            double g = pair_kernel(p, LAW, r2, w ? wi * w[j] : 1.0, WU, &u);
+            if (WF)
+                for (int k = 0; k < D; k++) {
+                    double c = g * dx[k];
+                    if (mi)
+                        a[k] += c;
+                    if (mj)
+                        out[j * D + k] -= c;
+                }
+            if (WU) {
+                if (mi)
+                    us += u;
+                if (mj)
+                    out[j] += u;
+            }
+        }
+        if (mi) {
+            if (WF)
+                for (int k = 0; k < D; k++)
+                    out[i * D + k] = a[k];
+            if (WU)
+                out[i] = us;
+        }
+    }
+}
+
+/* Four variants (2-D/3-D × forces/energies) of one law. */
+#define PAIR_VARIANTS(MAKE, PFX, LAW)                                                                        \
+    MAKE(PFX##_2f, LAW, 2, true, false)                                                                      \
+    MAKE(PFX##_2u, LAW, 2, false, true)                                                                      \
+    MAKE(PFX##_3f, LAW, 3, true, false)                                                                      \
+    MAKE(PFX##_3u, LAW, 3, false, true)
+#define PAIR_TABLE(PFX) {PFX##_2f, PFX##_2u, PFX##_3f, PFX##_3u}
+
+PAIR_VARIANTS(DIRECT_FN, direct_gravity, PSYS_PAIR_GRAVITY)
+PAIR_VARIANTS(DIRECT_FN, direct_coulomb, PSYS_PAIR_COULOMB)
+PAIR_VARIANTS(DIRECT_FN, direct_lj, PSYS_PAIR_LENNARD_JONES)
+PAIR_VARIANTS(DIRECT_FN, direct_soft, PSYS_PAIR_SOFT_REPULSION)
+PAIR_VARIANTS(DIRECT_FN, direct_user, PSYS_PAIR_USER)
+PAIR_VARIANTS(GRID_FN, grid_gravity, PSYS_PAIR_GRAVITY)
+PAIR_VARIANTS(GRID_FN, grid_coulomb, PSYS_PAIR_COULOMB)
+PAIR_VARIANTS(GRID_FN, grid_lj, PSYS_PAIR_LENNARD_JONES)
+PAIR_VARIANTS(GRID_FN, grid_soft, PSYS_PAIR_SOFT_REPULSION)
+PAIR_VARIANTS(GRID_FN, grid_user, PSYS_PAIR_USER)
+PAIR_VARIANTS(HALF_FN, half_gravity, PSYS_PAIR_GRAVITY)
+PAIR_VARIANTS(HALF_FN, half_coulomb, PSYS_PAIR_COULOMB)
+PAIR_VARIANTS(HALF_FN, half_lj, PSYS_PAIR_LENNARD_JONES)
+PAIR_VARIANTS(HALF_FN, half_soft, PSYS_PAIR_SOFT_REPULSION)
+PAIR_VARIANTS(HALF_FN, half_user, PSYS_PAIR_USER)
+
+/* Indexed by law (psys_pair_law order), then [2f, 2u, 3f, 3u]. */
+static const direct_fn direct_fns[5][4] = {PAIR_TABLE(direct_gravity), PAIR_TABLE(direct_coulomb),
+                                           PAIR_TABLE(direct_lj), PAIR_TABLE(direct_soft), PAIR_TABLE(direct_user)};
+static const grid_fn grid_fns[5][4] = {PAIR_TABLE(grid_gravity), PAIR_TABLE(grid_coulomb), PAIR_TABLE(grid_lj),
+                                       PAIR_TABLE(grid_soft), PAIR_TABLE(grid_user)};
+static const grid_fn half_fns[5][4] = {PAIR_TABLE(half_gravity), PAIR_TABLE(half_coulomb), PAIR_TABLE(half_lj),
+                                       PAIR_TABLE(half_soft), PAIR_TABLE(half_user)};
+
+static int variant(int dim, bool want_u) { return (dim == 3 ? 2 : 0) + (want_u ? 1 : 0); }
+
+/* Direct method: forces (want_u false) or energies (ep, or *total when ep is NULL: then serial). */
+static void direct_eval(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                        bool want_u, double *f, double *ep, double *total)
+{
+    int nt = ep || !want_u ? pair_threads(p, (double)n * (double)n) : 1;
+    direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt);
+}
+
+/* Particle i's position differs (bitwise, up to NaN payloads) from the cached one. */
+static inline bool moved_since(const double *x, const double *xc, size_t i, int d)
+{
+    for (int k = 0; k < d; k++) {
+        double a = x[i * d + k], b = xc[i * d + k];
+        if (a != b || signbit(a) != signbit(b))
+            return true;
+    }
+    return false;
+}
+
+/* Grid method. Forces go through a cache: a particle's force depends only
+ * on its position and those of its partners, so when the lists have not
+ * been rebuilt since the last evaluation and only a few particles moved
+ * (velocity Verlet's second evaluation of a step and the first of the next
+ * differ only by the particles wrapped into the box), only those particles
+ * and their partners are recomputed; the others keep their forces, which a
+ * full evaluation would reproduce bit for bit. User laws may depend on
+ * more than positions (their ctx) and are always recomputed. */
+static void grid_eval(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n, bool want_u,
+                      double *f, double *ep)
+{
+    pair_grid *g = &p->grid;
+    const int d = p->dim;
+    const size_t nd = n * (size_t)d;
+    int nt = g->half ? 1 : pair_threads(p, 2.0 * (double)p->stats.pairs);
+    grid_fn fn = (g->half ? half_fns : grid_fns)[p->law][variant(d, want_u)];
+    if (want_u) {
+        fn(p, m, x, w, n, NULL, ep, nt);
+        return;
+    }
+    const bool cacheable = p->law != PSYS_PAIR_USER;
+    const unsigned char *mark = NULL;
+    size_t nc = 0;
+    bool compute = true;
+    if (cacheable && g->cache_ok && g->cache_n == n && g->cache_rebuilds == p->stats.rebuilds) {
+        for (size_t i = 0; i < n && nc <= n / 8; i++)
+            if (moved_since(x, g->xcache, i, d))
+                g->changed[nc++] = (uint32_t)i;
+        if (nc == 0) {
+            compute = false;
+        } else if (nc <= n / 8) {
+            /* mark: bit 1 moved, bit 0 recompute (the moved and their partners) */
+            for (size_t t = 0; t < nc; t++)
+                g->mark[g->changed[t]] = 3;
+            if (g->half) {
+                for (size_t i = 0; i < n; i++)
+                    for (uint32_t q = 0; q < g->nb_num[i]; q++) {
+                        uint32_t j = g->nb[g->nb_start[i] + q];
+                        if (g->mark[i] & 2)
+                            g->mark[j] |= 1;
+                        if (g->mark[j] & 2)
+                            g->mark[i] |= 1;
+                    }
+            } else {
+                for (size_t t = 0; t < nc; t++) {
+                    uint32_t c = g->changed[t];
+                    for (uint32_t q = 0; q < g->nb_num[c]; q++)
+                        g->mark[g->nb[g->nb_start[c] + q]] |= 1;
+                }
+            }
+            mark = g->mark;
+            p->stats.partial++;
+        }
+    }
+    if (compute)
+        fn(p, m, x, w, n, mark, g->fcache, nt);
+    if (mark) {
+        for (size_t t = 0; t < nc; t++) {
+            uint32_t c = g->changed[t];
+            memcpy(g->xcache + (size_t)c * d, x + (size_t)c * d, (size_t)d * sizeof(double));
+        }
+        memset(g->mark, 0, n);
+    } else if (compute) {
+        memcpy(g->xcache, x, nd * sizeof(double));
+    }
+    g->cache_ok = cacheable;
+    g->cache_n = n;
+    g->cache_rebuilds = p->stats.rebuilds;
+    for (size_t k = 0; k < nd; k++)
+        f[k] += g->fcache[k];
+}
+
+/* Direct evaluation needing no storage (fallback when buffers could not
+ * grow): the same sums in the same order, so the same results. Coulomb with
+ * a charge array shorter than n: the uncharged tail adds exactly nothing,
+ * so only the charged prefix is evaluated. */
+static double fallback_eval(pair_force *p, const psys_force_eval *e, const pair_image *m, bool want_u, double *f)
+{
+    const double *w = pair_weights(p, e, false);
+    size_t n = e->n;
+    double t = 0;
+    p->stats.fallbacks++;
+    if (p->law == PSYS_PAIR_COULOMB && !w) {
+        w = p->sys->charge;
+        n = p->sys->ncharge;
+    }
+    direct_eval(p, m, e->x, w, n, want_u, f, NULL, &t);
+    return 0.5 * t;
+}
+
+/* One evaluation: forces added into f, or (want_u) the energy returned. */
+static double pair_eval(pair_force *p, const psys_force_eval *e, bool want_u, double *f)
+{
+    size_t n = e->n;
+    p->stats.evaluations++;
+    if (n < 2)
+        return 0;
+    pair_image m;
+    pair_image_of(&p->sys->box, &m);
+    if (!pair_reserve(p, n))
+        return fallback_eval(p, e, &m, want_u, f);
+    const double *w = pair_weights(p, e, true);
+    switch (p->def.method) {
+    case PSYS_PAIR_GRID:
+        if (!psys__pair_grid_update(p, e))
+            return fallback_eval(p, e, &m, want_u, f);
+        grid_eval(p, &m, e->x, w, n, want_u, f, p->epart);
+        break;
+    case PSYS_PAIR_BARNES_HUT:
+        if (!psys__pair_bh_build(p, e->x, w, n))
+            return fallback_eval(p, e, &m, want_u, f);
+        psys__pair_bh_eval(p, e, w, want_u, f);
+        break;
+    default:
+        direct_eval(p, &m, e->x, w, n, want_u, f, p->epart, NULL);
+        break;
+    }
+    if (!want_u)
+        return 0;
+    double u = 0;
+    for (size_t i = 0; i < n; i++)
+        u += p->epart[i];
+    return 0.5 * u;
+}
+
+static void pair_apply(void *data, const psys_force_eval *e, double *f) { pair_eval(data, e, false, f); }
+
+static double pair_energy(void *data, const psys_force_eval *e) { return pair_eval(data, e, true, NULL); }
+
+/* ---- Jacobian ----
+ * With dx = x_i - x_j and f_i = g(r) dx: ∂f_i/∂x_j = -K, ∂f_i/∂x_i = Σ_j K,
+ * K = g I + h dx dxᵀ, h = g'(r)/r. Its eigenvalues are F'(r) along dx and
+ * g across; a sink that wants a definite matrix gets both clamped to <= 0. */
+static double kernel_h(const pair_force *p, double r2, double c, double *g)
+{
+    double u;
+    *g = pair_kernel(p, p->law, r2, c, false, &u);
+    switch (p->law) {
+    case PSYS_PAIR_GRAVITY: {
+        double s2 = r2 + p->eps2;
+        if (!(s2 > 0))
+            return 0;
+        double inv = 1.0 / sqrt(s2), i2 = inv * inv;
+        return 3.0 * p->G * c * i2 * i2 * inv;
+    }
+    case PSYS_PAIR_COULOMB: {
+        if (!(r2 > 0))
+            return 0;
+        double inv = 1.0 / sqrt(r2), i2 = inv * inv;
+        return -3.0 * p->kc * c * i2 * i2 * inv;
+    }
+    case PSYS_PAIR_LENNARD_JONES: {
+        if (!(r2 < p->rc2) || !(r2 > 0))
+            return 0;
+        double ir2 = 1.0 / r2, s2 = p->sig2 * ir2, s6 = s2 * s2 * s2;
+        return p->lj24 * (8.0 * s6 - 28.0 * s6 * s6) * ir2 * ir2;
+    }
+    case PSYS_PAIR_SOFT_REPULSION: {
+        if (!(r2 < p->rc2) || !(r2 > 0))
+            return 0;
+        double r = sqrt(r2);
+        return -p->kc * p->def.radius / (r2 * r);
+    }
+    default: {
+        if ((p->rc2 > 0 && !(r2 < p->rc2)) || !(r2 > 0))
+            return 0;
+        double r = sqrt(r2), hstep = 1e-6 * r;
+        double fp = p->def.fn(p->def.ctx, r + hstep, NULL), fm = p->def.fn(p->def.ctx, r - hstep, NULL);
+        double dF = (fp - fm) / (2 * hstep);
+        return (dF - *g) / r2;
+    }
+    }
+}
+
+static void pair_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J)
+{
+    pair_force *p = data;
+    size_t n = e->n;
+    int d = e->dim;
+    p->stats.evaluations++;
+    /* Barnes–Hut's point is to avoid the n² pairs, which an exact Jacobian
+     * would need: implicit solvers treat it explicitly (no blocks). */
+    if (n < 2 || p->def.method == PSYS_PAIR_BARNES_HUT)
+        return;
+    pair_image m;
+    pair_image_of(&p->sys->box, &m);
+    bool storage = pair_reserve(p, n);
+    const double *w = pair_weights(p, e, storage);
+    if (p->def.method == PSYS_PAIR_GRID)
+        p->grid.want_full = true; /* the blocks go out in full-list order, whatever the thread count */
+    bool lists = storage && p->def.method == PSYS_PAIR_GRID && psys__pair_grid_update(p, e);
+    bool definite = psys_jacobian_wants_definite(J);
+    for (size_t i = 0; i < n; i++) {
+        double diag[9] = {0}, K[9];
+        size_t t0 = lists ? p->grid.nb_start[i] : 0, t1 = lists ? t0 + p->grid.nb_num[i] : n;
+        for (size_t t = t0; t < t1; t++) {
+            size_t j = lists ? p->grid.nb[t] : t;
+            if (j == i)
+                continue;
+            double dx[3], r2 = 0;
+            for (int k = 0; k < d; k++) {
+                dx[k] = pair_delta(&m, k, e->x[i * d + k] - e->x[j * d + k]);
+                r2 += dx[k] * dx[k];
+            }
+            double c = p->law == PSYS_PAIR_COULOMB ? psys_system_charge(p->sys, i) * psys_system_charge(p->sys, j)
+                                                   : w ? w[i] * w[j] : 1.0;
+            double g, h = kernel_h(p, r2, c, &g);
+            if (g == 0 && h == 0)
+                continue;
+            if (definite) {
+                double along = g + h * r2, across = g;
+                along = along < 0 ? along : 0;
+                across = across < 0 ? across : 0;
+                g = across;
+                h = r2 > 0 ? (along - across) / r2 : 0;
+            }
+            for (int r = 0; r < d; r++)
+                for (int c2 = 0; c2 < d; c2++) {
+                    double kv = (r == c2 ? g : 0.0) + h * dx[r] * dx[c2];
+                    K[r * d + c2] = -kv;
+                    diag[r * d + c2] += kv;
+                }
+            psys_jacobian_add(J, i, j, K, NULL);
+        }
+        psys_jacobian_add(J, i, i, diag, NULL);
+    }
+}
+
+const psys_force_class psys_pair_class = {"pair", pair_apply, pair_energy, pair_jacobian, pair_destroy};
+const psys_force_class psys_pair_user_class = {"user-pair", pair_apply, pair_energy, pair_jacobian, pair_destroy};
+
+/* ---- C API ---- */
+
+psys_status psys__pair_check_box(const void *data, const psys__box *box, char *msg, size_t cap)
+{
+    const pair_force *p = data;
+    if (!box->on || !box->any_periodic)
+        return PSYS_OK;
+    if (!law_has_cutoff(&p->def)) {
+        snprintf(msg, cap, "the %s law has no cutoff, so it cannot be used with a periodic box (no Ewald sums)",
+                 p->law == PSYS_PAIR_USER ? "user" : psys_pair_law_name(p->def.law));
+        return PSYS_ERR_INVALID;
+    }
+    for (int k = 0; k < p->dim; k++)
+        if (box->periodic[k] && !(p->def.cutoff < 0.5 * box->len[k])) {
+            snprintf(msg, cap, "the cutoff (%.17g) must be less than half the periodic box (box length %.17g on axis %d)",
+                     p->def.cutoff, box->len[k], k);
+            return PSYS_ERR_INVALID;
+        }
+    return PSYS_OK;
+}
+
+static bool fin(double x) { return isfinite(x); }
+
+/* Validate def and resolve its defaults into out; message into msg. */
+static psys_status resolve_def(const psys_pair_def *def, psys_pair_def *out, char *msg, size_t cap)
+{
+    *out = *def;
+    switch (def->law) {
+    case PSYS_PAIR_GRAVITY:
+        if (!fin(def->G) || def->G < 0)
+            return snprintf(msg, cap, "gravity G must be finite and >= 0 (got %g)", def->G), PSYS_ERR_INVALID;
+        if (!fin(def->softening) || def->softening < 0)
+            return snprintf(msg, cap, "gravity softening must be finite and >= 0 (got %g)", def->softening),
+                   PSYS_ERR_INVALID;
+        out->cutoff = 0;
+        break;
+    case PSYS_PAIR_COULOMB:
+        if (!fin(def->k) || def->k < 0)
+            return snprintf(msg, cap, "coulomb k must be finite and >= 0 (got %g)", def->k), PSYS_ERR_INVALID;
+        out->cutoff = 0;
+        break;
+    case PSYS_PAIR_LENNARD_JONES:
+        if (!fin(def->epsilon) || def->epsilon < 0)
+            return snprintf(msg, cap, "lennard-jones epsilon must be finite and >= 0 (got %g)", def->epsilon),
+                   PSYS_ERR_INVALID;
+        if (!fin(def->sigma) || !(def->sigma > 0))
+            return snprintf(msg, cap, "lennard-jones sigma must be finite and > 0 (got %g)", def->sigma),
+                   PSYS_ERR_INVALID;
+        if (!fin(def->cutoff))
+            return snprintf(msg, cap, "lennard-jones cutoff must be finite (got %g)", def->cutoff), PSYS_ERR_INVALID;
+        if (!(def->cutoff > 0))
+            out->cutoff = 2.5 * def->sigma;
+        break;
+    case PSYS_PAIR_SOFT_REPULSION:
+        if (!fin(def->k) || def->k < 0)
+            return snprintf(msg, cap, "soft-repulsion k must be finite and >= 0 (got %g)", def->k), PSYS_ERR_INVALID;
+        if (!fin(def->radius) || !(def->radius > 0))
+            return snprintf(msg, cap, "soft-repulsion radius must be finite and > 0 (got %g)", def->radius),
+                   PSYS_ERR_INVALID;
+        out->cutoff = def->radius;
+        break;
+    case PSYS_PAIR_USER:
+        if (!def->fn)
+            return snprintf(msg, cap, "a user pair law needs a function (fn)"), PSYS_ERR_INVALID;
+        if (!fin(def->cutoff) || def->cutoff < 0)
+            return snprintf(msg, cap, "user pair law cutoff must be finite and >= 0 (got %g)", def->cutoff),
+                   PSYS_ERR_INVALID;
+        break;
+    default:
+        return snprintf(msg, cap, "unknown pair law %d", (int)def->law), PSYS_ERR_INVALID;
+    }
+    bool cut = law_has_cutoff(out);
+    switch (def->method) {
+    case PSYS_PAIR_AUTO:
+        out->method = cut ? PSYS_PAIR_GRID : PSYS_PAIR_DIRECT;
+        break;
+    case PSYS_PAIR_DIRECT:
+        break;
+    case PSYS_PAIR_GRID:
+        if (!cut)
+            return snprintf(msg, cap, "method grid needs a law with a cutoff (lennard-jones, soft-repulsion, "
+                                      "or a user law with cutoff > 0)"),
+                   PSYS_ERR_INVALID;
+        break;
+    case PSYS_PAIR_BARNES_HUT:
+        if (def->law != PSYS_PAIR_GRAVITY && def->law != PSYS_PAIR_COULOMB)
+            return snprintf(msg, cap, "method barnes-hut is only for the long-range laws gravity and coulomb"),
+                   PSYS_ERR_INVALID;
+        break;
+    default:
+        return snprintf(msg, cap, "unknown pair method %d", (int)def->method), PSYS_ERR_INVALID;
+    }
+    if (out->method == PSYS_PAIR_GRID) {
+        if (!fin(def->skin))
+            return snprintf(msg, cap, "grid skin must be finite (got %g)", def->skin), PSYS_ERR_INVALID;
+        if (def->skin < 0)
+            out->skin = 0.1 * out->cutoff;
+    }
+    if (out->method == PSYS_PAIR_BARNES_HUT && (!fin(def->theta) || def->theta < 0))
+        return snprintf(msg, cap, "barnes-hut theta must be finite and >= 0 (got %g)", def->theta), PSYS_ERR_INVALID;
+    return PSYS_OK;
+}
+
+psys_status psys_system_add_pair(psys_system *sys, const psys_pair_def *def, size_t *force_index)
+{
+    char msg[300];
+    psys_pair_def r;
+    if (!def)
+        return psys__fail(&sys->err, PSYS_ERR_INVALID, "no pair definition given");
+    if (resolve_def(def, &r, msg, sizeof msg) != PSYS_OK)
+        return psys__fail(&sys->err, PSYS_ERR_INVALID, "%s", msg);
+    pair_force *p = calloc(1, sizeof *p);
+    if (!p)
+        return psys__fail(&sys->err, PSYS_ERR_NOMEM, "out of memory adding a pair force");
+    p->sys = sys;
+    p->def = r;
+    p->dim = sys->dim;
+    p->law = r.law;
+    p->G = r.G;
+    p->eps2 = r.softening * r.softening;
+    p->kc = r.k;
+    p->lj4 = 4.0 * r.epsilon;
+    p->lj24 = 24.0 * r.epsilon;
+    p->sig2 = r.sigma * r.sigma;
+    p->rc2 = law_has_cutoff(&r) ? r.cutoff * r.cutoff : 0;
+    if (r.law == PSYS_PAIR_LENNARD_JONES && r.shift) {
+        double s2 = p->sig2 / p->rc2, s6 = s2 * s2 * s2;
+        p->ushift = p->lj4 * s6 * (s6 - 1.0);
+    }
+    if (r.method == PSYS_PAIR_GRID) {
+        double rl = r.cutoff + r.skin;
+        p->rlist2 = rl * rl;
+    }
+    if (psys__pair_check_box(p, &sys->box, msg, sizeof msg) != PSYS_OK) {
+        pair_destroy(p);
+        return psys__fail(&sys->err, PSYS_ERR_INVALID, "%s", msg);
+    }
+    if (!pair_reserve(p, sys->n)) {
+        pair_destroy(p);
+        return psys__fail(&sys->err, PSYS_ERR_NOMEM, "out of memory for the pair force's storage");
+    }
+    const psys_force_class *cls = r.law == PSYS_PAIR_USER ? &psys_pair_user_class : &psys_pair_class;
+    psys_status st = psys_system_add_force(sys, cls, p);
+    if (st == PSYS_OK && force_index)
+        *force_index = sys->nforces - 1;
+    return st;
+}
+
+static const pair_force *pair_at(const psys_system *sys, size_t i)
+{
+    const psys_force_class *cls = psys_system_force_class(sys, i);
+    if (cls != &psys_pair_class && cls != &psys_pair_user_class)
+        return NULL;
+    return psys_system_force_data(sys, i);
+}
+
+psys_status psys_system_pair(const psys_system *sys, size_t i, psys_pair_def *def)
+{
+    const pair_force *p = pair_at(sys, i);
+    if (!p)
+        return PSYS_ERR_INVALID;
+    if (def)
+        *def = p->def;
+    return PSYS_OK;
+}
+
+psys_status psys_system_pair_stats(const psys_system *sys, size_t i, psys_pair_stats *stats)
+{
+    const pair_force *p = pair_at(sys, i);
+    if (!p)
+        return PSYS_ERR_INVALID;
+    if (stats)
+        *stats = p->stats;
+    return PSYS_OK;
+}
+
+/* ---- scene form ----
+ * {"type": "pair", "law": NAME, law parameters, "method": NAME, "skin" (grid), "theta" (barnes-hut)} */
+
+/* Fail at PATH.key with the value found there. */
+static psys_status fail_at(psys__parse *p, const cJSON *obj, const char *path, const char *key, const char *what)
+{
+    char kp[256];
+    snprintf(kp, sizeof kp, "%s.%s", path, key);
+    return psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(obj, key), "%s", what);
+}
+
+static psys_status pair_parse(psys__parse *p, const cJSON *obj, const char *path)
+{
+    static const char *const law_keys[NLAWS][5] = {
+        {"G", "softening", NULL},
+        {"k", NULL},
+        {"epsilon", "sigma", "cutoff", "shift", NULL},
+        {"k", "radius", NULL},
+    };
+    psys_system *sys = psys__parse_system(p);
+    char kp[256];
+    psys_pair_def def = psys_pair_def_default();
+    psys_status st;
+
+    const cJSON *law = cJSON_GetObjectItemCaseSensitive(obj, "law");
+    snprintf(kp, sizeof kp, "%s.law", path);
+    if (!law)
+        return psys__parse_fail(p, kp, NULL, "required key missing");
+    if (!cJSON_IsString(law))
+        return psys__parse_fail(p, kp, law, "must be a string");
+    int li = -1;
+    for (int k = 0; k < NLAWS; k++)
+        if (strcmp(law->valuestring, law_names[k]) == 0)
+            li = k;
+    if (li < 0)
+        return psys__parse_fail(p, kp, law, "unknown pair law (known: gravity, coulomb, lennard-jones, soft-repulsion)");
+    def.law = (psys_pair_law)li;
+    bool cut = def.law == PSYS_PAIR_LENNARD_JONES || def.law == PSYS_PAIR_SOFT_REPULSION;
+
+    const cJSON *meth = cJSON_GetObjectItemCaseSensitive(obj, "method");
+    if (meth) {
+        snprintf(kp, sizeof kp, "%s.method", path);
+        if (!cJSON_IsString(meth))
+            return psys__parse_fail(p, kp, meth, "must be a string");
+        if (strcmp(meth->valuestring, "direct") == 0)
+            def.method = PSYS_PAIR_DIRECT;
+        else if (strcmp(meth->valuestring, "grid") == 0)
+            def.method = PSYS_PAIR_GRID;
+        else if (strcmp(meth->valuestring, "barnes-hut") == 0)
+            def.method = PSYS_PAIR_BARNES_HUT;
+        else
+            return psys__parse_fail(p, kp, meth, "unknown method (known: direct, grid, barnes-hut)");
+        if (def.method == PSYS_PAIR_GRID && !cut)
+            return psys__parse_fail(p, kp, meth, "grid needs a law with a cutoff (lennard-jones, soft-repulsion)");
+        if (def.method == PSYS_PAIR_BARNES_HUT && cut)
+            return psys__parse_fail(p, kp, meth, "barnes-hut is only for the long-range laws gravity and coulomb");
+    } else {
+        def.method = cut ? PSYS_PAIR_GRID : PSYS_PAIR_DIRECT;
+    }
+    if (def.method != PSYS_PAIR_GRID && cJSON_GetObjectItemCaseSensitive(obj, "skin"))
+        return fail_at(p, obj, path, "skin", "only used by method \"grid\"");
+    if (def.method != PSYS_PAIR_BARNES_HUT && cJSON_GetObjectItemCaseSensitive(obj, "theta"))
+        return fail_at(p, obj, path, "theta", "only used by method \"barnes-hut\"");
+
+    const char *keys[12] = {"type", "law", "method"};
+    int nk = 3;
+    for (int k = 0; law_keys[li][k]; k++)
+        keys[nk++] = law_keys[li][k];
+    keys[nk++] = def.method == PSYS_PAIR_GRID ? "skin" : "theta";
+    keys[nk] = NULL;
+    if ((st = psys__parse_keys(p, obj, path, keys)) != PSYS_OK)
+        return st;
+
+    switch (def.law) {
+    case PSYS_PAIR_GRAVITY:
+        if ((st = psys__parse_number(p, obj, path, "G", true, 1, 0, false, &def.G)) != PSYS_OK
+            || (st = psys__parse_number(p, obj, path, "softening", true, 0, 0, false, &def.softening)) != PSYS_OK)
+            return st;
+        break;
+    case PSYS_PAIR_COULOMB:
+        if ((st = psys__parse_number(p, obj, path, "k", true, 1, 0, false, &def.k)) != PSYS_OK)
+            return st;
+        break;
+    case PSYS_PAIR_LENNARD_JONES: {
+        if ((st = psys__parse_number(p, obj, path, "epsilon", false, 0, 0, false, &def.epsilon)) != PSYS_OK
+            || (st = psys__parse_number(p, obj, path, "sigma", false, 0, 0, true, &def.sigma)) != PSYS_OK
+            || (st = psys__parse_number(p, obj, path, "cutoff", true, 2.5 * def.sigma, 0, true, &def.cutoff))
+                   != PSYS_OK)
+            return st;
+        const cJSON *sh = cJSON_GetObjectItemCaseSensitive(obj, "shift");
+        if (sh) {
+            if (!cJSON_IsBool(sh))
+                return fail_at(p, obj, path, "shift", "must be true or false");
+            def.shift = cJSON_IsTrue(sh);
+        }
+        break;
+    }
+    default: /* soft-repulsion */
+        if ((st = psys__parse_number(p, obj, path, "k", false, 0, 0, false, &def.k)) != PSYS_OK
+            || (st = psys__parse_number(p, obj, path, "radius", false, 0, 0, true, &def.radius)) != PSYS_OK)
+            return st;
+        break;
+    }
+    if (def.method == PSYS_PAIR_GRID
+        && (st = psys__parse_number(p, obj, path, "skin", true, -1, 0, false, &def.skin)) != PSYS_OK)
+        return st;
+    if (def.method == PSYS_PAIR_BARNES_HUT
+        && (st = psys__parse_number(p, obj, path, "theta", true, 0.5, 0, false, &def.theta)) != PSYS_OK)
+        return st;
+
+    /* the periodic box (parsed before forces) */
+    const psys__box *box = &sys->box;
+    if (box->on && box->any_periodic) {
+        if (!cut) {
+            char what[160];
+            snprintf(what, sizeof what, "%s has no cutoff, so it cannot be used with a periodic box (no Ewald sums)",
+                     law_names[li]);
+            return fail_at(p, obj, path, "law", what);
+        }
+        double rc = def.law == PSYS_PAIR_SOFT_REPULSION ? def.radius : def.cutoff;
+        const char *ck = def.law == PSYS_PAIR_SOFT_REPULSION ? "radius" : "cutoff";
+        for (int k = 0; k < sys->dim; k++)
+            if (box->periodic[k] && !(rc < 0.5 * box->len[k])) {
+                char what[160];
+                snprintf(what, sizeof what, "must be less than half the periodic box (box length %.17g on axis %d)",
+                         box->len[k], k);
+                return fail_at(p, obj, path, ck, what);
+            }
+    }
+    if (psys_system_add_pair(sys, &def, NULL) != PSYS_OK)
+        return psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
+    return PSYS_OK;
+}
+
+static psys_status pair_save(const psys_system *sys, const void *data, cJSON *arr)
+{
+    (void)sys;
+    const pair_force *p = data;
+    const psys_pair_def *d = &p->def;
+    cJSON *o = cJSON_CreateObject();
+    bool ok = o && cJSON_AddStringToObject(o, "type", "pair")
+              && cJSON_AddStringToObject(o, "law", psys_pair_law_name(d->law));
+    switch (d->law) {
+    case PSYS_PAIR_GRAVITY:
+        ok = ok && psys__add_num(o, "G", d->G) && psys__add_num(o, "softening", d->softening);
+        break;
+    case PSYS_PAIR_COULOMB:
+        ok = ok && psys__add_num(o, "k", d->k);
+        break;
+    case PSYS_PAIR_LENNARD_JONES:
+        ok = ok && psys__add_num(o, "epsilon", d->epsilon) && psys__add_num(o, "sigma", d->sigma)
+             && psys__add_num(o, "cutoff", d->cutoff) && cJSON_AddBoolToObject(o, "shift", d->shift);
+        break;
+    default:
+        ok = ok && psys__add_num(o, "k", d->k) && psys__add_num(o, "radius", d->radius);
+        break;
+    }
+    ok = ok && cJSON_AddStringToObject(o, "method", psys_pair_method_name(d->method));
+    if (d->method == PSYS_PAIR_GRID)
+        ok = ok && psys__add_num(o, "skin", d->skin);
+    if (d->method == PSYS_PAIR_BARNES_HUT)
+        ok = ok && psys__add_num(o, "theta", d->theta);
+    if (!ok) {
+        cJSON_Delete(o);
+        return PSYS_ERR_NOMEM;
+    }
+    cJSON_AddItemToArray(arr, o);
+    return PSYS_OK;
+}
+
+const psys__force_io psys__pair_io = {"pair", &psys_pair_class, pair_parse, pair_save};

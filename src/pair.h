@@ -1,0 +1,307 @@
+/* Internals shared by the pair-force files (force_pair.c, pair_grid.c,
+ * pair_bh.c): the force object, the law kernels and the minimum image.
+ *
+ * Determinism. Every method computes the force on particle i as a sum over
+ * its partners j in increasing index order, starting from zero, and adds the
+ * sum into f[i] once: in parallel each particle gathers over its full list;
+ * on one thread the grid's half lists are swept in increasing i, adding
+ * each pair's force to i and its negation to j, which reaches every
+ * particle's sum in the same order. A pair's forces are computed from the
+ * same numbers at both ends (x_i - x_j is exactly -(x_j - x_i), also under
+ * the minimum image), so f_ij = -f_ji exactly; pairs beyond the cutoff add
+ * exactly nothing. So `direct` and `grid` give bit-identical forces, results
+ * do not depend on the thread count, the skin or when lists were rebuilt (a
+ * resumed run matches an uninterrupted one). Energies: per-particle sums in
+ * the same order, then ½ Σ_i in index order. */
+#ifndef PSYS_PAIR_H
+#define PSYS_PAIR_H
+
+#include "internal.h"
+
+#include <math.h>
+#include <stdint.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#define PSYS_PRAGMA(x) _Pragma(#x)
+#define PSYS_OMP(x) PSYS_PRAGMA(x)
+#else
+#define PSYS_OMP(x)
+#endif
+
+#if defined(__GNUC__)
+#define PAIR_INLINE static inline __attribute__((always_inline))
+#else
+#define PAIR_INLINE static inline
+#endif
+
+/* Loops with less work than this (pair evaluations, roughly) run on one
+ * thread, unless the system asks for a thread count explicitly: then only
+ * loops below PAIR_PARALLEL_TINY do. */
+#define PAIR_PARALLEL_MIN 65536.0
+#define PAIR_PARALLEL_TINY 1024.0
+
+/* Barnes–Hut: particles per leaf and the deepest level (coincident points end there). */
+#define BH_LEAF 8
+#define BH_MAXDEPTH 48
+#define BH_STACK (8 * (BH_MAXDEPTH + 2))
+
+typedef struct bh_node {
+    double ctr[3];   /* geometric centre */
+    double half;     /* half the side */
+    double com[3];   /* centre of |weight| (mass or |charge|) */
+    double w;        /* total weight: mass or charge */
+    double wabs;     /* total |weight| */
+    uint32_t first;  /* leaf: first slot in perm; else first child node */
+    uint32_t count;  /* leaf: particles; else children */
+    uint32_t leaf;
+    uint32_t pad_;
+} bh_node;
+
+typedef struct pair_grid {
+    size_t built_n;        /* particles at the last build (0: never built) */
+    psys__box box;         /* box at the last build */
+    double *xref;          /* cap·dim positions at the last build */
+    size_t cells_cap;      /* cells the cell arrays hold */
+    uint32_t *cell_start;  /* cells_cap + 1 */
+    uint32_t *cell_of;     /* cap: cell of each particle */
+    uint32_t *cell_list;   /* cap: particles by cell, ascending within a cell */
+    double *cell_x;        /* cap·dim: their positions in that order (streamed by builds) */
+    size_t *nb_start;      /* cap: where particle i's list starts in nb */
+    uint32_t *nb_num;      /* cap: its length */
+    uint32_t *nb;          /* nb_cap neighbour indices, ascending per particle */
+    size_t nb_cap;
+    size_t *chunk_off;     /* chunks_cap + 1: region of each chunk of particles in nb */
+    size_t chunks_cap;
+    double per_particle;   /* list entries per particle at the last build (region sizing) */
+    bool half;             /* lists hold only partners j > i (one thread evaluates), else all */
+    bool want_full;        /* full lists from now on (a Jacobian was asked for) */
+    int ncell[3];
+    double cell_lo[3], cell_size[3];
+    /* force cache (laws that depend on positions only): forces of the last
+     * evaluation and the positions they were computed at */
+    double *fcache, *xcache;   /* cap·dim each */
+    unsigned char *mark;       /* cap: particles to recompute (all 0 between evaluations) */
+    uint32_t *changed;         /* cap: particles whose position changed */
+    bool cache_ok;
+    size_t cache_n, cache_rebuilds;
+} pair_grid;
+
+typedef struct pair_bh {
+    bh_node *nodes;
+    size_t nodes_cap, nnodes;
+    uint32_t *perm, *tmp;  /* cap each */
+    unsigned char *oct;    /* cap */
+} pair_bh;
+
+typedef struct pair_force {
+    psys_system *sys;      /* owner: box, charges, threads */
+    psys_pair_def def;     /* as added, defaults and method resolved */
+    int dim;
+    int law;               /* def.law */
+    /* kernel constants */
+    double G, eps2, kc;    /* gravity; coulomb / soft-repulsion k */
+    double lj4, lj24, sig2, ushift;
+    double rc2;            /* squared cutoff (0: none) */
+    double rlist2;         /* grid: (cutoff + skin)² */
+    size_t cap;            /* particles the per-particle buffers hold */
+    double *epart;         /* cap per-particle energies */
+    double *wbuf;          /* coulomb: cap charges (0 past the system's charge array) */
+    pair_grid grid;
+    pair_bh bh;
+    psys_pair_stats stats;
+} pair_force;
+
+/* Minimum-image parameters of one evaluation. */
+typedef struct pair_image {
+    bool on;
+    bool per[3];
+    double len[3], half[3];
+} pair_image;
+
+PAIR_INLINE void pair_image_of(const psys__box *b, pair_image *m)
+{
+    m->on = b->on && b->any_periodic;
+    for (int k = 0; k < 3; k++) {
+        m->per[k] = m->on && b->periodic[k];
+        m->len[k] = b->len[k];
+        m->half[k] = 0.5 * b->len[k];
+    }
+}
+
+/* x_i - x_j on one axis under the minimum image (odd in dx, so exact antisymmetry holds). */
+PAIR_INLINE double pair_delta(const pair_image *m, int k, double dx)
+{
+    if (m->on && m->per[k] && fabs(dx) > m->half[k])
+        dx -= m->len[k] * nearbyint(dx / m->len[k]);
+    return dx;
+}
+
+/* The law kernel: for squared distance r2 and pair coefficient c (m_i m_j
+ * for gravity, q_i q_j for coulomb, 1 otherwise) return g such that the force
+ * on i is g·(x_i - x_j); with want_u the pair energy goes to *u. Outside the
+ * cutoff and at r2 = 0 (softened gravity: never) the result is 0. */
+PAIR_INLINE double pair_kernel(const pair_force *p, const int law, double r2, double c, const bool want_u, double *u)
+{
+    switch (law) {
+    case PSYS_PAIR_GRAVITY: {
+        double s2 = r2 + p->eps2;
+        if (!(s2 > 0)) {
+            if (want_u) *u = 0;
+            return 0;
+        }
+        double inv = 1.0 / sqrt(s2), a = p->G * c;
+        if (want_u) *u = -a * inv;
+        return -a * (inv * inv * inv);
+    }
+    case PSYS_PAIR_COULOMB: {
+        if (!(r2 > 0)) {
+            if (want_u) *u = 0;
+            return 0;
+        }
+        double inv = 1.0 / sqrt(r2), a = p->kc * c;
+        if (want_u) *u = a * inv;
+        return a * (inv * inv * inv);
+    }
+    case PSYS_PAIR_LENNARD_JONES: {
+        /* evaluated unconditionally, then selected: neighbour lists hold many
+         * pairs just beyond the cutoff, where a branch would mispredict */
+        const bool in = (r2 < p->rc2) & (r2 > 0);
+        double ir2 = 1.0 / (in ? r2 : 1.0), s2 = p->sig2 * ir2, s6 = s2 * s2 * s2;
+        if (want_u) *u = in ? p->lj4 * s6 * (s6 - 1.0) - p->ushift : 0.0;
+        double g = p->lj24 * s6 * (2.0 * s6 - 1.0) * ir2;
+        return in ? g : 0.0;
+    }
+    case PSYS_PAIR_SOFT_REPULSION: {
+        if (!(r2 < p->rc2) || !(r2 > 0)) {
+            if (want_u) *u = 0;
+            return 0;
+        }
+        double r = sqrt(r2), dr = p->def.radius - r;
+        if (want_u) *u = 0.5 * p->kc * dr * dr;
+        return p->kc * dr / r;
+    }
+    default: { /* PSYS_PAIR_USER */
+        if ((p->rc2 > 0 && !(r2 < p->rc2)) || !(r2 > 0)) {
+            if (want_u) *u = 0;
+            return 0;
+        }
+        double r = sqrt(r2);
+        double f = p->def.fn(p->def.ctx, r, want_u ? u : NULL);
+        return f / r;
+    }
+    }
+}
+
+/* Gather over an ascending list js[0..nj) for particle i: force sum into
+ * acc (dim numbers, not cleared) and energy sum into *uacc. w: per-particle
+ * weights (NULL = 1). */
+PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int d, const pair_image *m,
+                                  const double *restrict x, const double *restrict w, size_t i,
+                                  const uint32_t *restrict js, size_t nj, const bool want_f, double *acc,
+                                  const bool want_u, double *uacc)
+{
+    double xi[3] = {0, 0, 0}, a[3] = {acc[0], acc[1], d == 3 ? acc[2] : 0}, us = *uacc;
+    for (int k = 0; k < d; k++)
+        xi[k] = x[i * d + k];
+    const double wi = w ? w[i] : 1.0;
+    for (size_t t = 0; t < nj; t++) {
+        size_t j = js[t];
+        double dx[3], r2 = 0;
+        for (int k = 0; k < d; k++) {
+            dx[k] = pair_delta(m, k, xi[k] - x[j * d + k]);
+            r2 += dx[k] * dx[k];
+        }
+        double u = 0;
+        double g = pair_kernel(p, law, r2, w ? wi * w[j] : 1.0, want_u, &u);
+        if (want_f)
+            for (int k = 0; k < d; k++)
+                a[k] += g * dx[k];
+        if (want_u)
+            us += u;
+    }
+    for (int k = 0; k < d; k++)
+        acc[k] = a[k];
+    *uacc = us;
+}
+
+/* Same over the index range [j0, j1), skipping i. */
+PAIR_INLINE void pair_gather_range(const pair_force *p, const int law, const int d, const pair_image *m,
+                                   const double *restrict x, const double *restrict w, size_t i, size_t j0,
+                                   size_t j1, const bool want_f, double *acc, const bool want_u, double *uacc)
+{
+    double xi[3] = {0, 0, 0}, a[3] = {acc[0], acc[1], d == 3 ? acc[2] : 0}, us = *uacc;
+    for (int k = 0; k < d; k++)
+        xi[k] = x[i * d + k];
+    const double wi = w ? w[i] : 1.0;
+    for (size_t j = j0; j < j1; j++) {
+        if (j == i)
+            continue;
+        double dx[3], r2 = 0;
+        for (int k = 0; k < d; k++) {
+            dx[k] = pair_delta(m, k, xi[k] - x[j * d + k]);
+            r2 += dx[k] * dx[k];
+        }
+        double u = 0;
+        double g = pair_kernel(p, law, r2, w ? wi * w[j] : 1.0, want_u, &u);
+        if (want_f)
+            for (int k = 0; k < d; k++)
+                a[k] += g * dx[k];
+        if (want_u)
+            us += u;
+    }
+    for (int k = 0; k < d; k++)
+        acc[k] = a[k];
+    *uacc = us;
+}
+
+/* Threads for a loop of about `work` pair evaluations. */
+static inline int pair_threads(const pair_force *p, double work)
+{
+#ifdef _OPENMP
+    if (p->sys->threads > 0)
+        return work < PAIR_PARALLEL_TINY ? 1 : p->sys->threads;
+    return work < PAIR_PARALLEL_MIN ? 1 : omp_get_max_threads();
+#else
+    (void)p;
+    (void)work;
+    return 1;
+#endif
+}
+
+/* Grid lists are half lists (partners j > i, each pair evaluated once, in a
+ * serial sweep) for up to two threads, and full lists (each particle gathers
+ * from all its partners, in parallel, so each pair is evaluated twice) for
+ * more: both add every particle's contributions in increasing partner
+ * order, so they give the same bits (force_pair.c). Two threads would only
+ * break even on full lists; they still share the list builds. */
+static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
+{
+    if (p->grid.want_full)
+        return false;
+    double per = p->grid.per_particle > 0 ? p->grid.per_particle : 32.0;
+    return pair_threads(p, per * (double)n) <= 2;
+}
+
+/* ---- pair_grid.c ---- */
+/** Make the neighbour lists valid for positions x (rebuild if the two largest
+ *  displacements add up to the skin, the particle count, the box or the
+ *  wanted kind of list (half, full) changed).
+ *  False if storage could not grow (the caller falls back to direct). */
+bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e);
+/** Free grid storage. */
+void psys__pair_grid_free(pair_grid *g);
+/** Grow grid per-particle storage to cap particles. */
+bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
+
+/* ---- pair_bh.c ---- */
+/** Build the tree for positions x and weights w (n particles). False if storage could not grow. */
+bool psys__pair_bh_build(pair_force *p, const double *x, const double *w, size_t n);
+/** Forces added into f, or (want_u) per-particle energies into p->epart, from the tree. */
+void psys__pair_bh_eval(pair_force *p, const psys_force_eval *e, const double *w, bool want_u, double *f);
+/** Free tree storage. */
+void psys__pair_bh_free(pair_bh *b);
+/** Grow tree per-particle storage to cap particles. */
+bool psys__pair_bh_reserve(pair_bh *b, size_t cap);
+
+#endif

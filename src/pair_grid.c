@@ -1,0 +1,523 @@
+/* Grid method of pair forces: cell lists (spatial buckets) and Verlet
+ * neighbour lists with a skin.
+ *
+ * A build sorts the particles into cells at least (cutoff + skin)/2 wide
+ * (counting sort, so each cell lists its particles in increasing index) and
+ * gives every particle the list of partners within cutoff + skin (all of
+ * them, or only those of higher index: pair.h), sorted by index (the force
+ * sum is then the direct method's, bit for bit). A particle scans the cells
+ * within two cells of its own whose nearest point is within cutoff + skin of
+ * it. The lists stay valid until the two largest displacements since the
+ * build add up to the skin (no pair can have closed its gap by more), the
+ * particle count, the box or the kind of list wanted changes; then they are
+ * rebuilt. Periodic axes:
+ * the cells tile the box exactly and wrap around; distances use the minimum
+ * image. Free axes: the cells span the particles' bounding box. The number
+ * of cells is capped at about twice the number of particles (cells grow
+ * wider for sparse or far-flung clouds), so storage is O(n) and a build
+ * O(n) at bounded density.
+ *
+ * Lists are written in one pass: particles are cut into chunks of
+ * CHUNK consecutive indices, each chunk writes into its own region of the
+ * list array, sized from the previous build's neighbours per particle; a
+ * region that overflows makes the build resize the regions and run again
+ * (this, and a growing system, are the only times the array grows). */
+#include "pair.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define CHUNK 128
+
+void psys__pair_grid_free(pair_grid *g)
+{
+    free(g->xref);
+    free(g->cell_start);
+    free(g->cell_of);
+    free(g->cell_list);
+    free(g->cell_x);
+    free(g->nb_start);
+    free(g->nb_num);
+    free(g->nb);
+    free(g->chunk_off);
+    free(g->fcache);
+    free(g->xcache);
+    free(g->mark);
+    free(g->changed);
+    memset(g, 0, sizeof *g);
+}
+
+bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
+{
+    void *q;
+    g->built_n = 0; /* storage changes: rebuild at the next evaluation */
+    g->cache_ok = false;
+#define GROW(field, count, type)                            \
+    if (!(q = psys__realloc(g->field, (count), sizeof(type)))) \
+        return false;                                       \
+    g->field = q;
+    GROW(xref, cap * (size_t)dim, double)
+    GROW(fcache, cap * (size_t)dim, double)
+    GROW(xcache, cap * (size_t)dim, double)
+    GROW(cell_x, cap * (size_t)dim, double)
+    GROW(cell_of, cap, uint32_t)
+    GROW(cell_list, cap, uint32_t)
+    GROW(nb_start, cap, size_t)
+    GROW(nb_num, cap, uint32_t)
+    GROW(changed, cap, uint32_t)
+    GROW(mark, cap, unsigned char)
+    size_t cells = 2 * cap + 64, chunks = cap / CHUNK + 2;
+    GROW(cell_start, cells + 1, uint32_t)
+    GROW(chunk_off, chunks + 1, size_t)
+#undef GROW
+    memset(g->mark, 0, cap);
+    g->cells_cap = cells;
+    g->chunks_cap = chunks;
+    return true;
+}
+
+static bool box_equal(const psys__box *a, const psys__box *b)
+{
+    if (a->on != b->on || a->any_periodic != b->any_periodic)
+        return false;
+    for (int k = 0; k < 3; k++)
+        if (a->periodic[k] != b->periodic[k] || a->lo[k] != b->lo[k] || a->hi[k] != b->hi[k])
+            return false;
+    return true;
+}
+
+/* Coordinate of x on axis k relative to the cell origin, wrapped on periodic axes. */
+static inline double cell_rel(const pair_grid *g, const pair_image *m, int k, double x)
+{
+    double t = x - g->cell_lo[k];
+    if (m->per[k] && !(t >= 0 && t < m->len[k]))
+        t -= m->len[k] * floor(t / m->len[k]);
+    return t;
+}
+
+static inline int cell_coord(const pair_grid *g, int k, double t)
+{
+    double c = floor(t / g->cell_size[k]);
+    if (!(c >= 0)) /* also NaN */
+        c = 0;
+    if (c > g->ncell[k] - 1)
+        c = g->ncell[k] - 1;
+    return (int)c;
+}
+
+static void insertion_sort(uint32_t *a, size_t n)
+{
+    for (size_t i = 1; i < n; i++) {
+        uint32_t v = a[i];
+        size_t j = i;
+        while (j > 0 && a[j - 1] > v) {
+            a[j] = a[j - 1];
+            j--;
+        }
+        a[j] = v;
+    }
+}
+
+/* Sort a list of particle indices (< 2^32) in place: distribute into
+ * SORT_BUCKETS buckets by their top bits (shift), then insertion-sort the
+ * nearly sorted result. tmp holds SORT_MAX entries. */
+#define SORT_BUCKETS 128
+#define SORT_MAX 512
+static void sort_indices(uint32_t *a, size_t n, int shift, uint32_t *tmp)
+{
+    if (n <= 16 || n > SORT_MAX) {
+        insertion_sort(a, n);
+        return;
+    }
+    uint16_t count[SORT_BUCKETS + 1];
+    memset(count, 0, sizeof count);
+    for (size_t i = 0; i < n; i++)
+        count[(a[i] >> shift) + 1]++;
+    for (int b = 0; b < SORT_BUCKETS; b++)
+        count[b + 1] = (uint16_t)(count[b + 1] + count[b]);
+    for (size_t i = 0; i < n; i++)
+        tmp[count[a[i] >> shift]++] = a[i];
+    memcpy(a, tmp, n * sizeof *a);
+    insertion_sort(a, n);
+}
+
+/* Cells around a particle's own, per axis: offsets -2..2 (pruned by the
+ * particle's distance to them), or, on a periodic axis of fewer than five
+ * cells, each cell once (offsets 0..n-1, not pruned). */
+typedef struct stencil {
+    int n[3];
+    int off[3][5];
+    bool prune[3];
+} stencil;
+
+/* Coordinate k of particle i as the builds see it: wrapped into the box on
+ * periodic axes (lo + t), the position itself on free axes. */
+static inline double build_coord(const pair_grid *g, const pair_image *m, int k, double x)
+{
+    return m->per[k] ? g->cell_lo[k] + cell_rel(g, m, k, x) : x;
+}
+
+/* Partners of i within the list radius (half lists: only those with j > i):
+ * all counted, the first `room` written to out and, if all fitted, sorted.
+ * Candidates come from cell_x (build coordinates, streamed); on a periodic
+ * axis each neighbouring cell is reached through the image its offset
+ * names, so no per-candidate minimum image is needed, except on periodic
+ * axes of fewer than five cells (each cell visited once, any image may be
+ * the nearest). The radius carries a slack for the rounding of wrapped
+ * coordinates (a list may hold a pair slightly beyond cutoff + skin; the
+ * kernel cuts at the cutoff exactly). */
+PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_image *m, const double *x, size_t i,
+                           uint32_t *out, size_t room, int shift, uint32_t *tmp, double rl2, const bool half,
+                           const int d)
+{
+    const pair_grid *g = &p->grid;
+    const double lim = rl2 * (1 + 1e-6);
+    uint32_t c = g->cell_of[i];
+    int cc[3] = {(int)(c % (uint32_t)g->ncell[0]), (int)((c / (uint32_t)g->ncell[0]) % (uint32_t)g->ncell[1]), 0};
+    if (d == 3)
+        cc[2] = (int)(c / ((uint32_t)g->ncell[0] * (uint32_t)g->ncell[1]));
+    double xi[3] = {0, 0, 0}, ad2[3][5], img[3][5];
+    int wc[3][5]; /* the neighbouring cells' coordinates, wrapped; -1: outside a free axis */
+    bool slow[3] = {false, false, false}, any_slow = false;
+    for (int k = 0; k < 3; k++) {
+        const int nk = g->ncell[k];
+        slow[k] = k < d && m->per[k] && !sc->prune[k];
+        any_slow |= slow[k];
+        for (int a = 0; a < sc->n[k]; a++) {
+            int v = cc[k] + sc->off[k][a];
+            double sh = 0; /* the cell's image lies at its particles' coordinates + sh */
+            if (m->per[k] && !slow[k]) {
+                if (v < 0) {
+                    v += nk;
+                    sh = -m->len[k];
+                } else if (v >= nk) {
+                    v -= nk;
+                    sh = m->len[k];
+                }
+            } else if (m->per[k]) {
+                if (v >= nk)
+                    v -= nk;
+            } else if (v < 0 || v >= nk) {
+                v = -1;
+            }
+            wc[k][a] = v;
+            img[k][a] = sh;
+            ad2[k][a] = 0;
+        }
+    }
+    for (int k = 0; k < d; k++) {
+        xi[k] = build_coord(g, m, k, x[i * d + k]);
+        double cs = g->cell_size[k], t = cell_rel(g, m, k, x[i * d + k]) - cs * cc[k];
+        t = t < 0 ? 0 : t > cs ? cs : t;
+        if (sc->prune[k])
+            for (int a = 0; a < sc->n[k]; a++) {
+                int o = sc->off[k][a];
+                double dist = o == 0 ? 0 : o > 0 ? o * cs - t : t + (-o - 1) * cs;
+                ad2[k][a] = dist * dist;
+            }
+    }
+    const double *cx = g->cell_x;
+    size_t cnt = 0;
+    const int nz = d == 3 ? sc->n[2] : 1;
+    for (int a2 = 0; a2 < nz; a2++) {
+        const double dz2 = ad2[2][a2];
+        const int z = wc[2][a2];
+        if (dz2 > lim || z < 0)
+            continue;
+        for (int a1 = 0; a1 < sc->n[1]; a1++) {
+            const double dyz2 = dz2 + ad2[1][a1];
+            const int y = wc[1][a1];
+            if (dyz2 > lim || y < 0)
+                continue;
+            const size_t row = (size_t)g->ncell[0] * ((size_t)y + (size_t)g->ncell[1] * (size_t)z);
+            for (int a0 = 0; a0 < sc->n[0]; a0++) {
+                const int xx = wc[0][a0];
+                if (dyz2 + ad2[0][a0] > lim || xx < 0)
+                    continue;
+                const size_t cell = row + (size_t)xx;
+                /* i's position relative to this cell's image */
+                const double xs[3] = {xi[0] - img[0][a0], xi[1] - img[1][a1], d == 3 ? xi[2] - img[2][a2] : 0};
+                for (uint32_t t = g->cell_start[cell], te = g->cell_start[cell + 1]; t < te; t++) {
+                    uint32_t j = g->cell_list[t];
+                    double r2 = 0;
+                    for (int k = 0; k < d; k++) {
+                        double dx = xs[k] - cx[(size_t)t * d + k];
+                        if (any_slow && slow[k])
+                            dx = pair_delta(m, k, dx);
+                        r2 += dx * dx;
+                    }
+                    if (cnt < room)
+                        out[cnt] = j;
+                    cnt += (r2 < rl2) & (half ? j > i : j != i);
+                }
+            }
+        }
+    }
+    if (cnt <= room)
+        sort_indices(out, cnt, shift, tmp);
+    return cnt;
+}
+
+/* Fill the lists of every chunk into its region; true if none overflowed. */
+#define FILL_FN(name, D, HALF)                                                                               \
+    static bool name(pair_force *p, const stencil *sc, const pair_image *m, const double *x, size_t n,       \
+                     size_t nchunks, double rl2, int nt)                                                     \
+    {                                                                                                        \
+        pair_grid *g = &p->grid;                                                                             \
+        int over = 0, shift = 0;                                                                             \
+        while ((n - 1) >> shift >= SORT_BUCKETS)                                                             \
+            shift++;                                                                                         \
+        (void)nt;                                                                                            \
+        PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1) reduction(|: over))        \
+        for (size_t c = 0; c < nchunks; c++) {                                                               \
+            uint32_t tmp[SORT_MAX];                                                                          \
+            size_t pos = g->chunk_off[c], end = g->chunk_off[c + 1];                                         \
+            size_t i1 = (c + 1) * CHUNK < n ? (c + 1) * CHUNK : n;                                           \
+            for (size_t i = c * CHUNK; i < i1; i++) {                                                        \
+                size_t room = end - pos;                                                                     \
+                size_t k = visit_d(p, sc, m, x, i, g->nb + pos, room, shift, tmp, rl2, HALF, D);             \
+                g->nb_start[i] = pos;                                                                        \
+                g->nb_num[i] = (uint32_t)k;                                                                  \
+                if (k <= room)                                                                               \
+                    pos += k;                                                                                \
+                else {                                                                                       \
+                    pos = end;                                                                               \
+                    over |= 1;                                                                               \
+                }                                                                                            \
+            }                                                                                                \
+        }                                                                                                    \
+        return !over;                                                                                        \
+    }
+FILL_FN(fill_2, 2, false)
+FILL_FN(fill_3, 3, false)
+FILL_FN(fill_2h, 2, true)
+FILL_FN(fill_3h, 3, true)
+
+static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, bool half)
+{
+    pair_grid *g = &p->grid;
+    const psys__box *box = &p->sys->box;
+    const size_t n = e->n;
+    const int d = p->dim;
+    const double *x = e->x;
+    g->built_n = 0;
+    g->cache_ok = false;
+
+    /* geometry: cells at least half the list radius wide (times 1 + 1e-9), at most cells_cap of them */
+    const double rl = sqrt(p->rlist2), hcell = 0.5 * rl * (1.0 + 1e-9);
+    double ext[3] = {0, 0, 0}, prod = 1;
+    for (int k = 0; k < d; k++) {
+        if (m->per[k]) {
+            g->cell_lo[k] = box->lo[k];
+            ext[k] = box->len[k];
+        } else {
+            double lo = INFINITY, hi = -INFINITY;
+            for (size_t i = 0; i < n; i++) {
+                double v = x[i * d + k];
+                if (v < lo) lo = v;
+                if (v > hi) hi = v;
+            }
+            if (!(lo <= hi) || !isfinite(hi - lo)) {
+                lo = isfinite(lo) ? lo : 0;
+                hi = lo;
+            }
+            g->cell_lo[k] = lo;
+            ext[k] = hi - lo;
+        }
+        double want = floor(ext[k] / hcell);
+        if (!(want >= 1))
+            want = 1;
+        if (want > (double)(1 << 20))
+            want = (double)(1 << 20);
+        g->ncell[k] = (int)want;
+        prod *= want;
+    }
+    for (int k = d; k < 3; k++) {
+        g->ncell[k] = 1;
+        g->cell_lo[k] = 0;
+    }
+    while (prod > (double)g->cells_cap) {
+        int big = 0;
+        for (int k = 1; k < d; k++)
+            if (g->ncell[k] > g->ncell[big])
+                big = k;
+        prod /= g->ncell[big];
+        g->ncell[big] = g->ncell[big] / 2 > 1 ? g->ncell[big] / 2 : 1;
+        prod *= g->ncell[big];
+    }
+    double vol = 1;
+    for (int k = 0; k < 3; k++) {
+        g->cell_size[k] = k < d && ext[k] > 0 ? ext[k] / g->ncell[k] : 1.0;
+        if (k < d)
+            vol *= ext[k] > 0 ? ext[k] : rl;
+    }
+    size_t ncells = (size_t)g->ncell[0] * (size_t)g->ncell[1] * (size_t)g->ncell[2];
+
+    /* cells: counting sort, stable, so ascending indices within a cell */
+    int nt = pair_threads(p, 4.0 * (double)n);
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1))
+    for (size_t i = 0; i < n; i++) {
+        size_t c = 0, mul = 1;
+        for (int k = 0; k < d; k++) {
+            c += mul * (size_t)cell_coord(g, k, cell_rel(g, m, k, x[i * d + k]));
+            mul *= (size_t)g->ncell[k];
+        }
+        g->cell_of[i] = (uint32_t)c;
+    }
+    memset(g->cell_start, 0, (ncells + 1) * sizeof(uint32_t));
+    for (size_t i = 0; i < n; i++)
+        g->cell_start[g->cell_of[i] + 1]++;
+    for (size_t c = 0; c < ncells; c++)
+        g->cell_start[c + 1] += g->cell_start[c];
+    for (size_t i = 0; i < n; i++)
+        g->cell_list[g->cell_start[g->cell_of[i]]++] = (uint32_t)i;
+    for (size_t c = ncells; c > 0; c--)
+        g->cell_start[c] = g->cell_start[c - 1];
+    g->cell_start[0] = 0;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1))
+    for (size_t t = 0; t < n; t++)
+        for (int k = 0; k < d; k++)
+            g->cell_x[t * d + k] = build_coord(g, m, k, x[(size_t)g->cell_list[t] * d + k]);
+    /* list radius with a slack for the rounding of build coordinates */
+    double scale = 0;
+    for (int k = 0; k < d; k++)
+        scale = fmax(scale, fabs(g->cell_lo[k]) + ext[k]);
+    const double rls = rl + 1e-13 * scale, rls2 = rls * rls;
+
+    stencil sc;
+    for (int k = 0; k < 3; k++) {
+        if (k >= d) {
+            sc.n[k] = 1;
+            sc.off[k][0] = 0;
+            sc.prune[k] = false;
+        } else if (m->per[k] && g->ncell[k] < 5) {
+            sc.n[k] = g->ncell[k];
+            for (int a = 0; a < g->ncell[k]; a++)
+                sc.off[k][a] = a;
+            sc.prune[k] = false;
+        } else {
+            sc.n[k] = 5;
+            for (int a = 0; a < 5; a++)
+                sc.off[k][a] = a - 2;
+            sc.prune[k] = true;
+        }
+    }
+
+    /* neighbour lists: regions per chunk sized from the last build (or the
+     * density), filled in one pass; on overflow sized exactly from the counts
+     * the pass made, and filled again */
+    if (!(g->per_particle > 0)) {
+        double ball = d == 3 ? 4.18879020478639098 * rl * rl * rl : 3.14159265358979324 * rl * rl;
+        g->per_particle = (double)n / vol * ball;
+    }
+    size_t nchunks = (n + CHUNK - 1) / CHUNK;
+    int ntf = pair_threads(p, 64.0 * (double)n);
+    double per = g->per_particle * 1.2 + 4;
+    if (per > (double)n)
+        per = (double)n;
+    for (int exact = 0;; exact++) {
+        g->chunk_off[0] = 0;
+        for (size_t c = 0; c < nchunks; c++) {
+            size_t i0 = c * CHUNK, i1 = i0 + CHUNK < n ? i0 + CHUNK : n, len = 0;
+            if (exact)
+                for (size_t i = i0; i < i1; i++)
+                    len += g->nb_num[i];
+            else
+                len = (size_t)(per * (double)(i1 - i0)) + 16;
+            g->chunk_off[c + 1] = g->chunk_off[c] + len;
+        }
+        size_t need = g->chunk_off[nchunks];
+        if (need > g->nb_cap) {
+            size_t cap = need + need / 8 + 64;
+            uint32_t *q = psys__realloc(g->nb, cap, sizeof(uint32_t));
+            if (!q)
+                return false;
+            g->nb = q;
+            g->nb_cap = cap;
+        }
+        bool ok = half ? (d == 2 ? fill_2h(p, &sc, m, x, n, nchunks, rls2, ntf)
+                                 : fill_3h(p, &sc, m, x, n, nchunks, rls2, ntf))
+                       : (d == 2 ? fill_2(p, &sc, m, x, n, nchunks, rls2, ntf)
+                                 : fill_3(p, &sc, m, x, n, nchunks, rls2, ntf));
+        if (ok)
+            break;
+        if (exact)
+            return false; /* cannot happen: the counts do not change */
+    }
+    size_t total = 0;
+    for (size_t i = 0; i < n; i++)
+        total += g->nb_num[i];
+    g->per_particle = (double)total / (double)n;
+    p->stats.pairs = half ? total : total / 2;
+
+    memcpy(g->xref, x, n * (size_t)d * sizeof(double));
+    g->box = *box;
+    g->built_n = n;
+    g->half = half;
+    p->stats.rebuilds++;
+    p->stats.cells = ncells;
+    return true;
+}
+
+/* Squared displacement of particle i since the last build (minimum image). */
+static inline double moved2(const pair_image *m, const double *x, const double *xr, size_t i, int d)
+{
+    double r2 = 0;
+    for (int k = 0; k < d; k++) {
+        double dx = pair_delta(m, k, x[i * d + k] - xr[i * d + k]);
+        r2 += dx * dx;
+    }
+    return r2;
+}
+
+/* The lists stay valid while the two largest displacements since the build
+ * add up to less than the skin: no pair can then have closed its gap by the
+ * skin (max > skin/2, the usual test, is more conservative). NaN forces a
+ * rebuild. Two order-independent reductions, so the same for every thread
+ * count (and the lists never affect results anyway). */
+bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
+{
+    pair_grid *g = &p->grid;
+    const size_t n = e->n;
+    const int d = p->dim;
+    pair_image m;
+    pair_image_of(&p->sys->box, &m);
+    const bool half = pair_grid_wants_half(p, n);
+    if (g->built_n == n && g->half == half && box_equal(&g->box, &p->sys->box)) {
+        const double *x = e->x, *xr = g->xref, skin = p->def.skin;
+        double m1 = 0, m2 = 0;
+        int bad = 0, nt = pair_threads(p, 4.0 * (double)n);
+        (void)nt;
+        PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1) reduction(max: m1) reduction(|: bad))
+        for (size_t i = 0; i < n; i++) {
+            double r2 = moved2(&m, x, xr, i, d);
+            if (!(r2 == r2))
+                bad |= 1;
+            else if (r2 > m1)
+                m1 = r2;
+        }
+        const double lim = skin - 1e-12 * (skin + sqrt(p->rc2)), d1 = sqrt(m1);
+        if (!bad && m1 == 0)
+            return true; /* nothing moved */
+        if (!bad && 2 * d1 < lim)
+            return true; /* even two such moves could not close the skin */
+        if (!bad && d1 < lim) {
+            /* the second largest: the largest below m1, or m1 itself if two reach it */
+            size_t at_max = 0;
+            PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1) reduction(max: m2) reduction(+: at_max))
+            for (size_t i = 0; i < n; i++) {
+                double r2 = moved2(&m, x, xr, i, d);
+                if (r2 == m1)
+                    at_max++;
+                else if (r2 > m2)
+                    m2 = r2;
+            }
+            if (at_max > 1)
+                m2 = m1;
+            if (d1 + sqrt(m2) < lim)
+                return true;
+        }
+    }
+    return build(p, e, &m, half);
+}

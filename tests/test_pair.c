@@ -1,0 +1,1363 @@
+/* Pair forces (spatial interaction, notes §4.3): every law against hand
+ * values, Newton's third law, energy conservation, grid = direct bit for bit
+ * (with and without periodic boxes), the minimum image, wrapping, thread-count
+ * determinism, Barnes–Hut error against theta, Kepler and figure-eight orbits
+ * with rk45, Jacobians, scene round trips and bad-input messages. */
+#include "check.h"
+
+#include <psys/psys.h>
+
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+static const double PI = 3.14159265358979323846;
+
+static psys_system *make_system(int dim)
+{
+    psys_error err;
+    psys_system *sys = psys_system_create(dim, &err);
+    if (!sys) {
+        fprintf(stderr, "psys_system_create: %s\n", err.message);
+        exit(1);
+    }
+    return sys;
+}
+
+static size_t add(psys_system *sys, const double *x, const double *v, double m)
+{
+    size_t i = (size_t)-1;
+    psys_status st = psys_system_add_particle(sys, x, v, m, NULL, &i);
+    CHECK(st == PSYS_OK);
+    return i;
+}
+
+static size_t add_pair(psys_system *sys, const psys_pair_def *def)
+{
+    size_t k = (size_t)-1;
+    psys_status st = psys_system_add_pair(sys, def, &k);
+    if (st != PSYS_OK)
+        fprintf(stderr, "psys_system_add_pair: %s\n", psys_system_last_error(sys));
+    CHECK(st == PSYS_OK);
+    return k;
+}
+
+/* Deterministic uniform numbers in [lo, hi) (xorshift64*). */
+static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
+static double urand(double lo, double hi)
+{
+    rng_state ^= rng_state >> 12;
+    rng_state ^= rng_state << 25;
+    rng_state ^= rng_state >> 27;
+    uint64_t r = rng_state * 2685821657736338717ull;
+    return lo + (hi - lo) * ((double)(r >> 11) * (1.0 / 9007199254740992.0));
+}
+
+static double *forces_of(psys_system *sys)
+{
+    size_t nd = psys_system_count(sys) * (size_t)psys_system_dim(sys);
+    double *f = calloc(nd ? nd : 1, sizeof(double));
+    CHECK(f != NULL);
+    psys_system_compute_forces(sys, f);
+    return f;
+}
+
+/* Two particles on the x axis at distance r; force on particle 0 (x) and the energy. */
+static void two_body(int dim, const psys_pair_def *def, double r, double m0, double m1, double q0, double q1,
+                     double *f0x, double *f1x, double *u)
+{
+    psys_system *sys = make_system(dim);
+    double a[3] = {0.25, -0.5, 0.125}, b[3] = {0.25 + r, -0.5, 0.125};
+    add(sys, a, NULL, m0);
+    add(sys, b, NULL, m1);
+    if (q0 != 0 || q1 != 0) {
+        CHECK(psys_system_set_charge(sys, 0, q0) == PSYS_OK);
+        CHECK(psys_system_set_charge(sys, 1, q1) == PSYS_OK);
+    }
+    add_pair(sys, def);
+    double *f = forces_of(sys);
+    *f0x = f[0];
+    *f1x = f[dim];
+    for (int k = 1; k < dim; k++) {
+        CHECK(f[k] == 0);
+        CHECK(f[dim + k] == 0);
+    }
+    *u = psys_system_potential_energy(sys);
+    free(f);
+    psys_system_destroy(sys);
+}
+
+/* ------------------------------------------------------------------ laws against hand values */
+
+static void gravity_hand_values(void)
+{
+    for (int dim = 2; dim <= 3; dim++) {
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_GRAVITY;
+        def.G = 1.5;
+        double f0, f1, u;
+        /* Newtonian: |F| = G m0 m1 / r² = 1.5·2·3/4, attractive (+x on particle 0) */
+        two_body(dim, &def, 2.0, 2.0, 3.0, 0, 0, &f0, &f1, &u);
+        CHECK_NEAR(f0, 2.25, 1e-15);
+        CHECK(f1 == -f0);
+        CHECK_NEAR(u, -1.5 * 6 / 2.0, 1e-15);
+        /* Plummer softening 1: F = G m m r/(r² + ε²)^{3/2}, U = -G m m/sqrt(r² + ε²) */
+        def.softening = 1.0;
+        two_body(dim, &def, 2.0, 2.0, 3.0, 0, 0, &f0, &f1, &u);
+        CHECK_NEAR(f0, 1.5 * 6 * 2.0 / pow(5.0, 1.5), 1e-15);
+        CHECK(f1 == -f0);
+        CHECK_NEAR(u, -1.5 * 6 / sqrt(5.0), 1e-15);
+        /* coincident particles, softened: no force, finite energy -G m m/ε */
+        two_body(dim, &def, 0.0, 2.0, 3.0, 0, 0, &f0, &f1, &u);
+        CHECK(f0 == 0 && f1 == 0);
+        CHECK_NEAR(u, -9.0, 1e-15);
+        /* coincident, Newtonian: no force and no energy rather than inf/NaN */
+        def.softening = 0;
+        two_body(dim, &def, 0.0, 2.0, 3.0, 0, 0, &f0, &f1, &u);
+        CHECK(f0 == 0 && f1 == 0 && u == 0);
+    }
+}
+
+static void coulomb_hand_values(void)
+{
+    for (int dim = 2; dim <= 3; dim++) {
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_COULOMB;
+        def.k = 3.0;
+        double f0, f1, u;
+        /* opposite charges attract: |F| = k |q0 q1| / r² = 3·2/4 */
+        two_body(dim, &def, 2.0, 1, 1, 2.0, -1.0, &f0, &f1, &u);
+        CHECK_NEAR(f0, 1.5, 1e-15);
+        CHECK(f1 == -f0);
+        CHECK_NEAR(u, -3.0, 1e-15);
+        /* like charges repel, energy positive */
+        two_body(dim, &def, 2.0, 1, 1, -2.0, -1.0, &f0, &f1, &u);
+        CHECK_NEAR(f0, -1.5, 1e-15);
+        CHECK_NEAR(u, 3.0, 1e-15);
+        /* masses do not matter; an uncharged particle feels nothing */
+        two_body(dim, &def, 2.0, 5, 7, 2.0, 0.0, &f0, &f1, &u);
+        CHECK(f0 == 0 && f1 == 0 && u == 0);
+    }
+}
+
+static void lennard_jones_hand_values(void)
+{
+    const double eps = 0.7, sig = 0.3, rc = 2.5 * sig;
+    for (int dim = 2; dim <= 3; dim++)
+        for (int method = PSYS_PAIR_DIRECT; method <= PSYS_PAIR_GRID; method++) {
+            psys_pair_def def = psys_pair_def_default();
+            def.law = PSYS_PAIR_LENNARD_JONES;
+            def.epsilon = eps;
+            def.sigma = sig;
+            def.cutoff = rc;
+            def.method = (psys_pair_method)method;
+            double f0, f1, u;
+            /* minimum at 2^(1/6) σ: zero force, U = -ε */
+            two_body(dim, &def, pow(2.0, 1.0 / 6) * sig, 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK(fabs(f0) < 1e-12 * 24 * eps / sig);
+            CHECK_NEAR(u, -eps, 1e-15);
+            /* at σ: U = 0, repulsive F = 24ε/σ (particle 0 pushed to -x) */
+            two_body(dim, &def, sig, 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK_NEAR(f0, -24 * eps / sig, 1e-12);
+            CHECK(f1 == -f0);
+            CHECK(fabs(u) < 1e-14);
+            /* at 1.5σ: attractive, F = 24ε/r [2(σ/r)¹² - (σ/r)⁶], U = 4ε[(σ/r)¹² - (σ/r)⁶] */
+            double r = 1.5 * sig, s6 = pow(sig / r, 6);
+            two_body(dim, &def, r, 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK_NEAR(f0, -24 * eps / r * (2 * s6 * s6 - s6), 1e-13);
+            CHECK(f0 > 0);
+            CHECK_NEAR(u, 4 * eps * (s6 * s6 - s6), 1e-15);
+            /* truncated without shift: just inside the cutoff U = U_LJ(rc) ≠ 0; beyond, nothing */
+            double sc6 = pow(sig / rc, 6), urc = 4 * eps * (sc6 * sc6 - sc6);
+            two_body(dim, &def, rc * (1 - 1e-12), 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK_NEAR(u, urc, 1e-12);
+            CHECK(f0 != 0);
+            two_body(dim, &def, rc, 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK(f0 == 0 && u == 0);
+            two_body(dim, &def, 1.01 * rc, 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK(f0 == 0 && u == 0);
+            /* shift: U(rc) = 0 (continuous), U(r) = U_LJ(r) - U_LJ(rc), forces unchanged */
+            def.shift = true;
+            double g0;
+            two_body(dim, &def, rc * (1 - 1e-12), 1, 1, 0, 0, &f0, &f1, &u);
+            CHECK(fabs(u) < 1e-12);
+            two_body(dim, &def, r, 1, 1, 0, 0, &g0, &f1, &u);
+            CHECK_NEAR(u, 4 * eps * (s6 * s6 - s6) - urc, 1e-15);
+            CHECK_NEAR(g0, -24 * eps / r * (2 * s6 * s6 - s6), 1e-13);
+        }
+    /* cutoff default 2.5σ */
+    psys_system *sys = make_system(3);
+    psys_pair_def def = psys_pair_def_default(), got;
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = 0.2;
+    size_t k = add_pair(sys, &def);
+    CHECK(psys_system_pair(sys, k, &got) == PSYS_OK);
+    CHECK(got.cutoff == 2.5 * 0.2);
+    CHECK(got.method == PSYS_PAIR_GRID);
+    CHECK(got.skin == 0.1 * got.cutoff);
+    psys_system_destroy(sys);
+}
+
+static void soft_repulsion_hand_values(void)
+{
+    for (int dim = 2; dim <= 3; dim++) {
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_SOFT_REPULSION;
+        def.k = 4;
+        def.radius = 1;
+        double f0, f1, u;
+        /* U = ½k(R - r)², F = k(R - r) repulsive */
+        two_body(dim, &def, 0.5, 1, 1, 0, 0, &f0, &f1, &u);
+        CHECK_NEAR(f0, -2.0, 1e-15);
+        CHECK(f1 == 2.0);
+        CHECK_NEAR(u, 0.5, 1e-15);
+        two_body(dim, &def, 1.0, 1, 1, 0, 0, &f0, &f1, &u);
+        CHECK(f0 == 0 && u == 0);
+        two_body(dim, &def, 3.0, 1, 1, 0, 0, &f0, &f1, &u);
+        CHECK(f0 == 0 && u == 0);
+    }
+}
+
+/* User law: a spring of rest length 1 and stiffness ctx, F(r) = -k (r - 1), U = ½ k (r - 1)². */
+static double spring_law(void *ctx, double r, double *u)
+{
+    double k = *(const double *)ctx;
+    if (u)
+        *u = 0.5 * k * (r - 1) * (r - 1);
+    return -k * (r - 1);
+}
+
+static void user_law_hand_values(void)
+{
+    static double k = 3.0;
+    for (int dim = 2; dim <= 3; dim++) {
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_USER;
+        def.fn = spring_law;
+        def.ctx = &k;
+        double f0, f1, u;
+        two_body(dim, &def, 1.5, 1, 1, 0, 0, &f0, &f1, &u); /* stretched: pulls together */
+        CHECK_NEAR(f0, 1.5, 1e-15);
+        CHECK(f1 == -f0);
+        CHECK_NEAR(u, 0.375, 1e-15);
+        def.cutoff = 1.2; /* with a cutoff: grid by default, nothing beyond it */
+        two_body(dim, &def, 1.5, 1, 1, 0, 0, &f0, &f1, &u);
+        CHECK(f0 == 0 && u == 0);
+        two_body(dim, &def, 0.5, 1, 1, 0, 0, &f0, &f1, &u);
+        CHECK_NEAR(f0, -1.5, 1e-15);
+    }
+    /* no scene form */
+    psys_error err;
+    psys_scene *s = psys_scene_load_string("{\"psys\": 1}", 11, &err);
+    CHECK(s != NULL);
+    if (!s)
+        return;
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_USER;
+    def.fn = spring_law;
+    def.ctx = &k;
+    add_pair(psys_scene_system(s), &def);
+    char *text = psys_scene_to_string(s, NULL, &err);
+    CHECK(text == NULL);
+    CHECK(err.code == PSYS_ERR_UNSUPPORTED);
+    CHECK_STR(err.message, "force \"user-pair\" was added through the C API and has no scene form");
+    free(text);
+    psys_scene_destroy(s);
+}
+
+/* ------------------------------------------------------------------ conservation */
+
+static psys_system *random_cloud(int dim, size_t n, double size, bool masses, bool charges)
+{
+    psys_system *sys = make_system(dim);
+    for (size_t i = 0; i < n; i++) {
+        double x[3], v[3];
+        for (int k = 0; k < dim; k++) {
+            x[k] = urand(0, size);
+            v[k] = urand(-0.1, 0.1);
+        }
+        add(sys, x, v, masses ? urand(0.5, 2) : 1.0);
+        if (charges)
+            CHECK(psys_system_set_charge(sys, i, urand(-1, 1)) == PSYS_OK);
+    }
+    return sys;
+}
+
+/* n particles on a jittered square/cubic lattice of the given spacing. */
+static psys_system *jittered_lattice(int dim, size_t n, double spacing, double jitter, bool charges)
+{
+    psys_system *sys = make_system(dim);
+    size_t side = (size_t)ceil(pow((double)n, 1.0 / dim));
+    for (size_t i = 0; i < n; i++) {
+        double x[3], v[3];
+        size_t c = i;
+        for (int k = 0; k < dim; k++) {
+            x[k] = spacing * (double)(c % side) + urand(-jitter, jitter);
+            c /= side;
+            v[k] = urand(-0.1, 0.1);
+        }
+        add(sys, x, v, urand(0.5, 2));
+        if (charges)
+            CHECK(psys_system_set_charge(sys, i, urand(-1, 1)) == PSYS_OK);
+    }
+    return sys;
+}
+
+/* Each pair's forces cancel exactly, so the net force is rounding only, and
+ * momentum is conserved along a trajectory. */
+static void newton_third_law(void)
+{
+    for (int dim = 2; dim <= 3; dim++)
+        for (int law = 0; law < 4; law++) {
+            psys_system *sys = jittered_lattice(dim, 200, 0.17, 0.02, law == PSYS_PAIR_COULOMB);
+            psys_pair_def def = psys_pair_def_default();
+            def.law = (psys_pair_law)law;
+            def.softening = 0.05;
+            def.sigma = 0.1;
+            def.epsilon = 1e-3;
+            def.radius = 0.3;
+            add_pair(sys, &def);
+            double *f = forces_of(sys);
+            double net[3] = {0, 0, 0}, mag = 0;
+            for (size_t i = 0; i < 200; i++)
+                for (int k = 0; k < dim; k++) {
+                    net[k] += f[i * dim + k];
+                    mag += fabs(f[i * dim + k]);
+                }
+            CHECK(mag > 0);
+            for (int k = 0; k < dim; k++)
+                CHECK(fabs(net[k]) <= 1e-13 * mag);
+            free(f);
+            /* momentum over 100 verlet steps */
+            psys_ode ode = psys_system_ode(sys);
+            psys_error err;
+            psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+            double p0[3] = {0, 0, 0}, p1[3] = {0, 0, 0}, pmag = 0;
+            const double *v = psys_system_velocities(sys), *m = psys_system_masses(sys);
+            for (size_t i = 0; i < 200; i++)
+                for (int k = 0; k < dim; k++) {
+                    p0[k] += m[i] * v[i * dim + k];
+                    pmag += fabs(m[i] * v[i * dim + k]);
+                }
+            for (int s = 0; s < 20; s++)
+                CHECK(psys_system_advance(sys, sol, 1e-3, NULL) == PSYS_OK);
+            v = psys_system_velocities(sys);
+            double pmag1 = 0;
+            for (size_t i = 0; i < 200; i++)
+                for (int k = 0; k < dim; k++) {
+                    p1[k] += m[i] * v[i * dim + k];
+                    pmag1 += fabs(m[i] * v[i * dim + k]);
+                }
+            pmag = fmax(pmag, pmag1);
+            for (int k = 0; k < dim; k++)
+                CHECK_NEAR(p1[k], p0[k], 1e-12 * pmag);
+            psys_solver_destroy(sol);
+            psys_system_destroy(sys);
+        }
+}
+
+/* A 27-atom Lennard-Jones cluster with verlet: total energy stays within a
+ * small band (no drift), grid and direct give the same trajectory bit for bit. */
+static void lj_cluster_energy(void)
+{
+    double e_first = 0;
+    double *x_by_method[2] = {NULL, NULL};
+    for (int method = 0; method < 2; method++) {
+        rng_state = 12345;
+        psys_system *sys = make_system(3);
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                for (int c = 0; c < 3; c++) {
+                    double x[3] = {1.12 * a + urand(-0.03, 0.03), 1.12 * b + urand(-0.03, 0.03),
+                                   1.12 * c + urand(-0.03, 0.03)};
+                    double v[3] = {urand(-0.2, 0.2), urand(-0.2, 0.2), urand(-0.2, 0.2)};
+                    add(sys, x, v, 1.0);
+                }
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_LENNARD_JONES;
+        def.shift = true;
+        def.method = method ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID;
+        def.skin = 0.3;
+        size_t k = add_pair(sys, &def);
+        psys_ode ode = psys_system_ode(sys);
+        psys_error err;
+        psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+        double e0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys), worst = 0;
+        CHECK(e0 < 0); /* bound */
+        for (int s = 1; s <= 1200; s++) {
+            CHECK(psys_system_advance(sys, sol, 0.003, NULL) == PSYS_OK);
+            if (s % 50 == 0) {
+                double e = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
+                worst = fmax(worst, fabs(e - e0));
+            }
+        }
+        /* measured: about 2e-4 of |E0| (verlet's bounded oscillation at dt = 0.002) */
+        if (worst > 1e-3 * fabs(e0))
+            fprintf(stderr, "LJ cluster energy error %.3g (E0 = %.6g)\n", worst, e0);
+        CHECK(worst <= 1e-3 * fabs(e0));
+        if (method == 0) {
+            e_first = e0;
+            psys_pair_stats st;
+            CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK);
+            CHECK(st.rebuilds >= 2);            /* the atoms moved far enough to need new lists ... */
+            CHECK(st.rebuilds < st.evaluations / 4); /* ... but lists were reused */
+        } else {
+            CHECK(e0 == e_first);
+        }
+        size_t nd = 27 * 3;
+        x_by_method[method] = malloc(nd * sizeof(double));
+        memcpy(x_by_method[method], psys_system_positions(sys), nd * sizeof(double));
+        psys_solver_destroy(sol);
+        psys_system_destroy(sys);
+    }
+    CHECK(memcmp(x_by_method[0], x_by_method[1], 27 * 3 * sizeof(double)) == 0);
+    free(x_by_method[0]);
+    free(x_by_method[1]);
+}
+
+/* ------------------------------------------------------------------ grid = direct */
+
+static psys_system *cloud_with_pair(int dim, size_t n, double size, int law, psys_pair_method method, double skin,
+                                    const double *box_len, uint64_t seed)
+{
+    rng_state = seed;
+    psys_system *sys = random_cloud(dim, n, size, true, false);
+    if (box_len) {
+        double lo[3] = {0, 0, 0}, hi[3];
+        bool per[3] = {true, true, true};
+        for (int k = 0; k < 3; k++)
+            hi[k] = box_len[k];
+        per[dim - 1] = dim == 2 ? true : false; /* 3-D: z free, to mix both kinds of axes */
+        CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_OK);
+    }
+    psys_pair_def def = psys_pair_def_default();
+    def.law = (psys_pair_law)law;
+    def.sigma = 0.1;
+    def.epsilon = 0.01;
+    def.cutoff = 0.3;
+    def.radius = 0.25;
+    def.k = 2;
+    def.method = method;
+    def.skin = skin;
+    add_pair(sys, &def);
+    return sys;
+}
+
+static void compare_grid_direct(int dim, const double *box_len)
+{
+    const size_t n = 250;
+    for (int law = PSYS_PAIR_LENNARD_JONES; law <= PSYS_PAIR_SOFT_REPULSION; law++)
+        for (int pass = 0; pass < 3; pass++) {
+            double skin = pass == 0 ? 0.0 : pass == 1 ? 0.05 : 0.4;
+            psys_system *a = cloud_with_pair(dim, n, 2.5, law, PSYS_PAIR_GRID, skin, box_len, 99 + pass);
+            psys_system *b = cloud_with_pair(dim, n, 2.5, law, PSYS_PAIR_DIRECT, skin, box_len, 99 + pass);
+            for (int move = 0; move < 3; move++) {
+                double *fa = forces_of(a), *fb = forces_of(b);
+                CHECK(memcmp(fa, fb, n * dim * sizeof(double)) == 0);
+                double fmax_ = 0;
+                for (size_t i = 0; i < n * dim; i++)
+                    fmax_ = fmax(fmax_, fabs(fa[i]));
+                CHECK(fmax_ > 0);
+                CHECK(psys_system_potential_energy(a) == psys_system_potential_energy(b));
+                free(fa);
+                free(fb);
+                /* small moves (lists reused) then a large one (rebuild); across the box edge too */
+                for (size_t i = 0; i < n; i++) {
+                    double x[3];
+                    memcpy(x, psys_system_positions(a) + i * dim, dim * sizeof(double));
+                    for (int k = 0; k < dim; k++)
+                        x[k] += move == 1 ? urand(-0.3, 0.3) : urand(-0.01, 0.01);
+                    CHECK(psys_system_set_particle(a, i, x, NULL) == PSYS_OK);
+                    CHECK(psys_system_set_particle(b, i, x, NULL) == PSYS_OK);
+                }
+            }
+            psys_pair_stats st;
+            CHECK(psys_system_pair_stats(a, 0, &st) == PSYS_OK);
+            CHECK(st.rebuilds >= 2 && st.pairs > 0 && st.fallbacks == 0);
+            psys_system_destroy(a);
+            psys_system_destroy(b);
+        }
+}
+
+static void grid_equals_direct_2d(void) { compare_grid_direct(2, NULL); }
+static void grid_equals_direct_3d(void) { compare_grid_direct(3, NULL); }
+static void grid_equals_direct_periodic_2d(void)
+{
+    double len[3] = {2.5, 2.0, 0};
+    compare_grid_direct(2, len);
+}
+static void grid_equals_direct_periodic_3d(void)
+{
+    double len[3] = {2.5, 0.7, 2.0}; /* 0.7: two cells across, wrapping onto the same neighbour */
+    compare_grid_direct(3, len);
+}
+
+/* Lists are rebuilt only when the two largest displacements since the last
+ * build add up to the skin or more. */
+static void grid_rebuild_criterion(void)
+{
+    psys_system *sys = make_system(2);
+    for (int i = 0; i < 10; i++)
+        for (int j = 0; j < 10; j++) {
+            double x[2] = {0.5 * i, 0.5 * j};
+            add(sys, x, NULL, 1);
+        }
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_SOFT_REPULSION;
+    def.radius = 0.6;
+    def.skin = 0.2;
+    size_t k = add_pair(sys, &def);
+    psys_pair_stats st;
+    double *f0 = forces_of(sys);
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1 && st.pairs == 90 + 90 + 162);
+    free(forces_of(sys)); /* nothing moved */
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1);
+    double x[2] = {0.5 * 3 + 0.15, 0.5 * 4}; /* one particle moved 0.15 < skin */
+    psys_system_set_particle(sys, 34, x, NULL);
+    free(forces_of(sys));
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1);
+    double y[2] = {0.5 * 7, 0.5 * 7 + 0.04}; /* a second one 0.04: 0.19 < skin */
+    psys_system_set_particle(sys, 77, y, NULL);
+    free(forces_of(sys));
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1);
+    y[1] = 0.5 * 7 + 0.06; /* 0.15 + 0.06 >= skin: they could now be closer than listed */
+    psys_system_set_particle(sys, 77, y, NULL);
+    free(forces_of(sys));
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 2);
+    CHECK(st.evaluations == 5);
+    /* particle 77 back (0.06 from the last build): no rebuild, and the forces
+     * of a fresh system in the same state, bit for bit */
+    double y0[2] = {3.5, 3.5};
+    psys_system_set_particle(sys, 77, y0, NULL);
+    double *f1 = forces_of(sys);
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 2);
+    psys_system *fresh = make_system(2);
+    for (size_t i = 0; i < 100; i++)
+        add(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
+    add_pair(fresh, &def);
+    double *f2 = forces_of(fresh);
+    CHECK(memcmp(f1, f2, 100 * 2 * sizeof(double)) == 0);
+    CHECK(memcmp(f0, f2, 100 * 2 * sizeof(double)) != 0);
+    free(f0);
+    free(f1);
+    free(f2);
+    psys_system_destroy(fresh);
+    psys_system_destroy(sys);
+}
+
+/* The grid method reuses the forces of particles whose neighbourhood did not
+ * move (verlet's two evaluations at the same positions, up to particles
+ * wrapped into the box): a periodic verlet run equals the direct method's bit
+ * for bit, with partial evaluations taking place. */
+static void grid_cache_matches_direct(void)
+{
+    double *xs[2];
+    for (int method = 0; method < 2; method++) {
+        rng_state = 99;
+        psys_system *sys = make_system(3);
+        double lo[3] = {0, 0, 0}, hi[3] = {4, 4, 4};
+        bool per[3] = {true, true, true};
+        CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_OK);
+        for (int i = 0; i < 216; i++) {
+            double x[3] = {(i % 6) * 0.66 + urand(0, 0.05), (i / 6 % 6) * 0.66 + urand(0, 0.05), (i / 36) * 0.66 + 0.01};
+            double v[3] = {urand(-3, 3), urand(-3, 3), urand(-3, 3)};
+            add(sys, x, v, 1);
+        }
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_LENNARD_JONES;
+        def.sigma = 0.6;
+        def.cutoff = 1.5;
+        def.skin = 0.4;
+        def.method = method ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID;
+        size_t k = add_pair(sys, &def);
+        psys_ode ode = psys_system_ode(sys);
+        psys_error err;
+        psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+        for (int s = 0; s < 30; s++)
+            CHECK(psys_system_advance(sys, sol, 0.004, NULL) == PSYS_OK);
+        if (method == 0) {
+            psys_pair_stats st;
+            CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK);
+            CHECK(st.partial > 5);                 /* some particles wrapped: partial recomputation */
+            CHECK(st.rebuilds > 1 && st.rebuilds < 15);
+        }
+        xs[method] = malloc(216 * 3 * sizeof(double));
+        memcpy(xs[method], psys_system_positions(sys), 216 * 3 * sizeof(double));
+        psys_solver_destroy(sol);
+        psys_system_destroy(sys);
+    }
+    CHECK(memcmp(xs[0], xs[1], 216 * 3 * sizeof(double)) == 0);
+    free(xs[0]);
+    free(xs[1]);
+}
+
+/* ------------------------------------------------------------------ periodic box */
+
+/* Two particles near opposite faces interact as if adjacent. */
+static void minimum_image(void)
+{
+    for (int dim = 2; dim <= 3; dim++)
+        for (int method = PSYS_PAIR_DIRECT; method <= PSYS_PAIR_GRID; method++)
+            for (int sep = 0; sep < 2; sep++) {
+                double gap = sep ? 0.6 : 0.45; /* σ = 0.5: 0.6 attracts (past 0.561), 0.45 repels */
+                psys_pair_def def = psys_pair_def_default();
+                def.law = PSYS_PAIR_LENNARD_JONES;
+                def.sigma = 0.5;
+                def.cutoff = 1.25;
+                def.method = (psys_pair_method)method;
+                /* across the x faces of a box [0, 10)^dim */
+                psys_system *a = make_system(dim);
+                double lo[3] = {0, 0, 0}, hi[3] = {10, 10, 10};
+                bool per[3] = {true, true, true};
+                CHECK(psys_system_set_box(a, lo, hi, per) == PSYS_OK);
+                double p0[3] = {0.2, 5, 5}, p1[3] = {10.2 - gap, 5, 5};
+                add(a, p0, NULL, 1);
+                add(a, p1, NULL, 1);
+                add_pair(a, &def);
+                /* the same pair side by side in open space */
+                psys_system *b = make_system(dim);
+                double q0[3] = {5.2, 5, 5}, q1[3] = {5.2 - gap, 5, 5};
+                add(b, q0, NULL, 1);
+                add(b, q1, NULL, 1);
+                add_pair(b, &def);
+                double *fa = forces_of(a), *fb = forces_of(b);
+                CHECK(fa[0] != 0);
+                CHECK_NEAR(fa[0], fb[0], 1e-12 * fabs(fb[0]));
+                CHECK(sep ? fa[0] < 0 : fa[0] > 0); /* attract toward the image at 0.2 - gap, or repel */
+                CHECK(fa[dim] == -fa[0]);
+                CHECK_NEAR(psys_system_potential_energy(a), psys_system_potential_energy(b), 1e-12);
+                CHECK(psys_system_potential_energy(a) != 0);
+                /* without the box they are 9.4 apart: nothing */
+                psys_system *c = make_system(dim);
+                add(c, p0, NULL, 1);
+                add(c, p1, NULL, 1);
+                add_pair(c, &def);
+                double *fc = forces_of(c);
+                CHECK(fc[0] == 0);
+                free(fa);
+                free(fb);
+                free(fc);
+                psys_system_destroy(a);
+                psys_system_destroy(b);
+                psys_system_destroy(c);
+            }
+}
+
+/* Positions wrap on periodic axes after each step; velocities are unchanged;
+ * free axes, fixed particles and particles inside the box are left alone. */
+static void wrapping(void)
+{
+    psys_system *sys = make_system(2);
+    double lo[2] = {-1, 0}, hi[2] = {1, 4};
+    bool per[2] = {true, false};
+    CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_OK);
+    double x0[2] = {0.95, 3.95}, v0[2] = {1.0, 1.0};
+    double x1[2] = {-0.95, 0.5}, v1[2] = {-1.0, 0.0};
+    double x2[2] = {5.0, 2.0}; /* fixed, outside: stays */
+    add(sys, x0, v0, 1);
+    add(sys, x1, v1, 1);
+    add(sys, x2, NULL, 1);
+    psys_system_set_fixed(sys, 2, true);
+    psys_ode ode = psys_system_ode(sys);
+    psys_error err;
+    psys_solver *sol = psys_solver_create("symplectic-euler", &ode, &err);
+    for (int s = 0; s < 10; s++)
+        CHECK(psys_system_advance(sys, sol, 0.01, NULL) == PSYS_OK);
+    const double *x = psys_system_positions(sys), *v = psys_system_velocities(sys);
+    CHECK_NEAR(x[0], 1.05 - 2.0, 1e-12); /* wrapped from 1.05 */
+    CHECK_NEAR(x[1], 4.05, 1e-12);       /* free axis: not wrapped */
+    CHECK_NEAR(x[2], -1.05 + 2.0, 1e-12);
+    CHECK(x[3] == 0.5);
+    CHECK(x[4] == 5.0 && x[5] == 2.0);
+    CHECK(v[0] == 1.0 && v[1] == 1.0 && v[2] == -1.0);
+    for (int s = 0; s < 1000; s++)
+        CHECK(psys_system_advance(sys, sol, 0.01, NULL) == PSYS_OK);
+    x = psys_system_positions(sys);
+    CHECK(x[0] >= -1 && x[0] < 1);
+    CHECK(x[2] >= -1 && x[2] < 1);
+    psys_solver_destroy(sol);
+    /* far outside: wrapped in one go */
+    double far[2] = {1001.5, 1};
+    psys_system_set_particle(sys, 0, far, NULL);
+    psys_system_wrap_positions(sys);
+    CHECK_NEAR(psys_system_positions(sys)[0], -0.5, 1e-12);
+    bool got_per[2];
+    double glo[2], ghi[2];
+    CHECK(psys_system_box(sys, glo, ghi, got_per));
+    CHECK(glo[0] == -1 && ghi[1] == 4 && got_per[0] && !got_per[1]);
+    CHECK(psys_system_set_box(sys, NULL, NULL, NULL) == PSYS_OK);
+    CHECK(!psys_system_box(sys, NULL, NULL, NULL));
+    psys_system_destroy(sys);
+}
+
+static void box_validation(void)
+{
+    psys_system *sys = make_system(2);
+    double lo[2] = {0, 0}, hi[2] = {1, 0}, hi2[2] = {1, 1};
+    bool per[2] = {true, true};
+    CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys), "box hi must be greater than lo on every axis (axis 1: lo 0, hi 0)");
+    psys_pair_def def = psys_pair_def_default(); /* gravity: no cutoff */
+    add_pair(sys, &def);
+    CHECK(psys_system_set_box(sys, lo, hi2, per) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys), "pair force 0: the gravity law has no cutoff, so it cannot be used with a "
+                                           "periodic box (no Ewald sums)");
+    bool open[2] = {false, false};
+    CHECK(psys_system_set_box(sys, lo, hi2, open) == PSYS_OK); /* no periodic axis: fine */
+    psys_system_destroy(sys);
+
+    sys = make_system(2);
+    CHECK(psys_system_set_box(sys, lo, hi2, per) == PSYS_OK);
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = 0.2; /* cutoff 0.5 = half the box */
+    CHECK(psys_system_add_pair(sys, &def, NULL) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys),
+              "the cutoff (0.5) must be less than half the periodic box (box length 1 on axis 0)");
+    def.cutoff = 0.49;
+    add_pair(sys, &def);
+    double hi3[2] = {0.9, 1};
+    CHECK(psys_system_set_box(sys, lo, hi3, per) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys), "pair force 0: the cutoff (0.48999999999999999) must be less than half "
+                                           "the periodic box (box length 0.90000000000000002 on axis 0)");
+    psys_system_destroy(sys);
+
+    /* API validation of definitions */
+    sys = make_system(3);
+    psys_pair_def bad = psys_pair_def_default();
+    bad.method = PSYS_PAIR_GRID;
+    CHECK(psys_system_add_pair(sys, &bad, NULL) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys), "method grid needs a law with a cutoff (lennard-jones, soft-repulsion, or "
+                                           "a user law with cutoff > 0)");
+    bad = psys_pair_def_default();
+    bad.law = PSYS_PAIR_LENNARD_JONES;
+    bad.method = PSYS_PAIR_BARNES_HUT;
+    CHECK(psys_system_add_pair(sys, &bad, NULL) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys), "method barnes-hut is only for the long-range laws gravity and coulomb");
+    bad = psys_pair_def_default();
+    bad.softening = -1;
+    CHECK(psys_system_add_pair(sys, &bad, NULL) == PSYS_ERR_INVALID);
+    bad = psys_pair_def_default();
+    bad.law = PSYS_PAIR_USER;
+    CHECK(psys_system_add_pair(sys, &bad, NULL) == PSYS_ERR_INVALID);
+    CHECK_STR(psys_system_last_error(sys), "a user pair law needs a function (fn)");
+    CHECK(psys_system_force_count(sys) == 0);
+    CHECK(psys_system_set_charge(sys, 0, 1) == PSYS_ERR_INVALID);
+    double x[3] = {0, 0, 0};
+    add(sys, x, NULL, 1);
+    CHECK(psys_system_set_charge(sys, 0, NAN) == PSYS_ERR_INVALID);
+    CHECK(psys_system_charge(sys, 0) == 0);
+    CHECK(psys_system_set_threads(sys, -1) == PSYS_ERR_INVALID);
+    psys_system_destroy(sys);
+}
+
+/* ------------------------------------------------------------------ threads */
+
+static psys_system *thread_case(int which)
+{
+    rng_state = 777 + (uint64_t)which;
+    if (which == 0) { /* LJ in a periodic 3-D box, grid */
+        double len[3] = {6, 6, 6};
+        psys_system *sys = make_system(3);
+        double lo[3] = {0, 0, 0};
+        bool per[3] = {true, true, true};
+        CHECK(psys_system_set_box(sys, lo, len, per) == PSYS_OK);
+        for (int a = 0; a < 8; a++)
+            for (int b = 0; b < 8; b++)
+                for (int c = 0; c < 8; c++) {
+                    double x[3] = {0.75 * a + urand(-0.05, 0.05), 0.75 * b + urand(-0.05, 0.05),
+                                   0.75 * c + urand(-0.05, 0.05)};
+                    double v[3] = {urand(-1, 1), urand(-1, 1), urand(-1, 1)};
+                    add(sys, x, v, 1);
+                }
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_LENNARD_JONES;
+        def.sigma = 0.7;
+        def.cutoff = 1.75;
+        def.skin = 0.2;
+        add_pair(sys, &def);
+        return sys;
+    }
+    psys_system *sys = random_cloud(which == 3 ? 2 : 3, 200, 1.0, true, false);
+    psys_pair_def def = psys_pair_def_default();
+    def.softening = 0.01;
+    def.G = 1e-3;
+    def.method = which == 1 ? PSYS_PAIR_DIRECT : PSYS_PAIR_BARNES_HUT;
+    add_pair(sys, &def);
+    return sys;
+}
+
+/* Forces, energies and a short trajectory are identical for 1, 2 and 4 threads. */
+static void thread_determinism(int first, int last)
+{
+    for (int which = first; which <= last; which++) {
+        double *ref_f = NULL, *ref_x = NULL, ref_u = 0;
+        size_t nd = 0;
+        for (int t = 1; t <= 4; t *= 2) {
+            psys_system *sys = thread_case(which);
+            CHECK(psys_system_set_threads(sys, t) == PSYS_OK);
+            CHECK(psys_system_threads(sys) == t);
+            nd = psys_system_count(sys) * (size_t)psys_system_dim(sys);
+            double *f = forces_of(sys);
+            double u = psys_system_potential_energy(sys);
+            psys_ode ode = psys_system_ode(sys);
+            psys_error err;
+            psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+            for (int s = 0; s < 5; s++)
+                CHECK(psys_system_advance(sys, sol, 0.002, NULL) == PSYS_OK);
+            psys_solver_destroy(sol);
+            if (t == 1) {
+                ref_f = f;
+                ref_u = u;
+                ref_x = malloc(nd * sizeof(double));
+                memcpy(ref_x, psys_system_positions(sys), nd * sizeof(double));
+            } else {
+                CHECK(memcmp(f, ref_f, nd * sizeof(double)) == 0);
+                CHECK(u == ref_u);
+                CHECK(memcmp(psys_system_positions(sys), ref_x, nd * sizeof(double)) == 0);
+                free(f);
+            }
+            psys_system_destroy(sys);
+        }
+        free(ref_f);
+        free(ref_x);
+    }
+}
+
+static void thread_determinism_grid(void) { thread_determinism(0, 0); }
+static void thread_determinism_direct_bh(void) { thread_determinism(1, 3); }
+
+/* ------------------------------------------------------------------ Barnes–Hut */
+
+/* A centrally condensed cloud (radius ~ u³) for Barnes–Hut, with a pair force of the given method. */
+static psys_system *bh_cloud(int dim, size_t n, int law, psys_pair_method method, double theta)
+{
+    rng_state = 4242;
+    psys_system *sys = make_system(dim);
+    for (size_t i = 0; i < n; i++) {
+        double x[3], r2 = 0;
+        do {
+            r2 = 0;
+            for (int k = 0; k < dim; k++) {
+                x[k] = urand(-1, 1);
+                r2 += x[k] * x[k];
+            }
+        } while (r2 > 1);
+        for (int k = 0; k < dim; k++)
+            x[k] *= r2;
+        add(sys, x, NULL, urand(0.5, 1.5));
+        if (law == PSYS_PAIR_COULOMB) /* mostly positive: 20% negative charges */
+            CHECK(psys_system_set_charge(sys, i, urand(0.2, 1.0) * (urand(0, 1) < 0.8 ? 1 : -1)) == PSYS_OK);
+    }
+    psys_pair_def def = psys_pair_def_default();
+    def.law = (psys_pair_law)law;
+    def.softening = 1e-3;
+    def.method = method;
+    def.theta = theta;
+    add_pair(sys, &def);
+    return sys;
+}
+
+/* Relative RMS force error sqrt(Σ|f_bh - f|²/Σ|f|²) and relative energy
+ * error of Barnes–Hut against direct, for increasing theta: it grows with
+ * theta, vanishes (to rounding) at 0 and stays below the documented bounds
+ * at 0.5 (docs/scene-format.md, "Pair forces"). */
+static void barnes_hut_error(int dim)
+{
+    static const double thetas[] = {0.0, 0.25, 0.5, 0.75, 1.0};
+    const size_t n = 600;
+    for (int law = PSYS_PAIR_GRAVITY; law <= PSYS_PAIR_COULOMB; law++) {
+        psys_system *ref = bh_cloud(dim, n, law, PSYS_PAIR_DIRECT, 0);
+        double *f0 = forces_of(ref), u0 = psys_system_potential_energy(ref);
+        psys_system_destroy(ref);
+        double prev = -1, err[5], uerr[5];
+        for (int t = 0; t < 5; t++) {
+            psys_system *sys = bh_cloud(dim, n, law, PSYS_PAIR_BARNES_HUT, thetas[t]);
+            double *f = forces_of(sys), fe = 0, fn = 0;
+            for (size_t i = 0; i < n * dim; i++) {
+                fe += (f[i] - f0[i]) * (f[i] - f0[i]);
+                fn += f0[i] * f0[i];
+            }
+            err[t] = sqrt(fe / fn);
+            uerr[t] = fabs(psys_system_potential_energy(sys) - u0) / fabs(u0);
+            fprintf(stderr, "barnes-hut %dD %s theta %.2f: force error %.3g, energy error %.3g\n", dim,
+                    psys_pair_law_name((psys_pair_law)law), thetas[t], err[t], uerr[t]);
+            CHECK(err[t] > prev); /* strictly increases with theta */
+            prev = err[t];
+            free(f);
+            psys_system_destroy(sys);
+        }
+        free(f0);
+        CHECK(err[0] < 1e-13); /* theta 0: the exact sum, in another order */
+        CHECK(uerr[0] < 1e-13);
+        CHECK(err[2] < 5e-3);  /* theta 0.5 */
+        CHECK(uerr[2] < 5e-3);
+        CHECK(err[4] < 0.1);
+    }
+}
+
+static void barnes_hut_error_2d(void) { barnes_hut_error(2); }
+static void barnes_hut_error_3d(void) { barnes_hut_error(3); }
+
+/* ------------------------------------------------------------------ orbits with rk45 */
+
+/* Integrate with rk45 to exactly t_end. */
+static void run_rk45(psys_system *sys, double t_end, double tol)
+{
+    psys_ode ode = psys_system_ode(sys);
+    psys_error err;
+    psys_solver *sol = psys_solver_create("rk45", &ode, &err);
+    CHECK(sol != NULL);
+    if (!sol)
+        return;
+    psys_solver_set_tolerance(sol, tol);
+    psys_solver_set_next_step(sol, 1e-3);
+    int guard = 0;
+    while (t_end - psys_system_time(sys) > 1e-13 * t_end && guard++ < 1000000) {
+        double h;
+        psys_status st = psys_system_advance(sys, sol, t_end - psys_system_time(sys), &h);
+        CHECK(st == PSYS_OK);
+        if (st != PSYS_OK)
+            break;
+    }
+    psys_solver_destroy(sol);
+}
+
+/* Two bodies on an eccentric (e = 0.6) Kepler orbit return to their start after one period. */
+static void kepler_orbit_closes(void)
+{
+    for (int method = PSYS_PAIR_DIRECT; method <= PSYS_PAIR_BARNES_HUT; method += 2) {
+        const double G = 1, m1 = 1.0, m2 = 0.25, M = m1 + m2, a = 1.0, e = 0.6;
+        double rp = a * (1 - e), vp = sqrt(G * M * (1 + e) / (a * (1 - e)));
+        double T = 2 * PI * sqrt(a * a * a / (G * M));
+        psys_system *sys = make_system(2);
+        double x1[2] = {-m2 / M * rp, 0}, v1[2] = {0, -m2 / M * vp};
+        double x2[2] = {m1 / M * rp, 0}, v2[2] = {0, m1 / M * vp};
+        add(sys, x1, v1, m1);
+        add(sys, x2, v2, m2);
+        psys_pair_def def = psys_pair_def_default();
+        def.G = G;
+        def.method = (psys_pair_method)method;
+        add_pair(sys, &def);
+        double e0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
+        CHECK_NEAR(e0, -G * m1 * m2 / (2 * a), 1e-12);
+        run_rk45(sys, T, 1e-10);
+        const double *x = psys_system_positions(sys);
+        double err = hypot(x[0] - x1[0], x[1] - x1[1]) + hypot(x[2] - x2[0], x[3] - x2[1]);
+        fprintf(stderr, "kepler (%s): position error after one period %.3g (relative to a)\n",
+                psys_pair_method_name((psys_pair_method)method), err / a);
+        CHECK(err / a < 1e-6); /* documented tolerance; measured about 1e-8 */
+        double e1 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
+        CHECK_NEAR(e1, e0, 1e-8 * fabs(e0));
+        /* halfway, the bodies are at apoapsis: separation a(1 + e) */
+        psys_system_destroy(sys);
+    }
+}
+
+/* Chenciner–Montgomery figure-eight: three equal masses return to their start after T. */
+static void figure_eight_returns(void)
+{
+    const double T = 6.32591398;
+    double x[3][2] = {{0.97000436, -0.24308753}, {-0.97000436, 0.24308753}, {0, 0}};
+    double v3[2] = {-0.93240737, -0.86473146};
+    double v[3][2] = {{-v3[0] / 2, -v3[1] / 2}, {-v3[0] / 2, -v3[1] / 2}, {v3[0], v3[1]}};
+    psys_system *sys = make_system(2);
+    for (int i = 0; i < 3; i++)
+        add(sys, x[i], v[i], 1.0);
+    psys_pair_def def = psys_pair_def_default();
+    add_pair(sys, &def);
+    double e0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
+    run_rk45(sys, T, 1e-11);
+    const double *y = psys_system_positions(sys), *vy = psys_system_velocities(sys);
+    double err = 0, verr = 0;
+    for (int i = 0; i < 3; i++) {
+        err = fmax(err, hypot(y[2 * i] - x[i][0], y[2 * i + 1] - x[i][1]));
+        verr = fmax(verr, hypot(vy[2 * i] - v[i][0], vy[2 * i + 1] - v[i][1]));
+    }
+    fprintf(stderr, "figure-eight: return error %.3g (position), %.3g (velocity)\n", err, verr);
+    CHECK(err < 1e-6); /* documented tolerance: the initial conditions have 8 digits */
+    CHECK(verr < 1e-6);
+    /* and it really moved: a quarter period in, body 3 is far from the origin */
+    double e1 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
+    CHECK_NEAR(e1, e0, 1e-9 * fabs(e0));
+    psys_system_destroy(sys);
+}
+
+/* ------------------------------------------------------------------ Jacobians */
+
+static void jacobians_match_differences(void)
+{
+    static double kuser = 2.5;
+    for (int dim = 2; dim <= 3; dim++)
+        for (int law = 0; law <= PSYS_PAIR_USER; law++) {
+            rng_state = 31 + (uint64_t)law;
+            psys_system *sys = random_cloud(dim, 6, 1.0, true, law == PSYS_PAIR_COULOMB);
+            psys_pair_def def = psys_pair_def_default();
+            def.law = (psys_pair_law)law;
+            def.softening = 0.1;
+            def.sigma = 0.4;
+            def.cutoff = 1.2;
+            def.radius = 0.9;
+            def.fn = spring_law;
+            def.ctx = &kuser;
+            add_pair(sys, &def);
+            size_t nd = 6 * (size_t)dim;
+            double *jx = calloc(nd * nd, sizeof(double)), *jv = calloc(nd * nd, sizeof(double));
+            double *fx = calloc(nd * nd, sizeof(double)), *fv = calloc(nd * nd, sizeof(double));
+            CHECK(psys_system_dense_jacobian(sys, jx, jv) == PSYS_OK);
+            CHECK(psys_system_fd_jacobian(sys, 1e-6, fx, fv) == PSYS_OK);
+            double worst = 0, scale = 0;
+            for (size_t i = 0; i < nd * nd; i++) {
+                worst = fmax(worst, fabs(jx[i] - fx[i]));
+                scale = fmax(scale, fabs(fx[i]));
+                CHECK(jv[i] == 0);
+            }
+            CHECK(scale > 0);
+            if (!(worst <= 1e-5 * scale))
+                fprintf(stderr, "jacobian %dD law %d: worst %.3g, scale %.3g\n", dim, law, worst, scale);
+            CHECK(worst <= 1e-5 * scale);
+            free(jx);
+            free(jv);
+            free(fx);
+            free(fv);
+            psys_system_destroy(sys);
+        }
+}
+
+/* Particles added after the force: storage grows at the next evaluation. */
+static void particles_added_later(void)
+{
+    psys_system *a = make_system(3), *b = make_system(3);
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = 0.1;
+    add_pair(a, &def);
+    rng_state = 5;
+    for (int i = 0; i < 400; i++) {
+        double x[3] = {urand(0, 1), urand(0, 1), urand(0, 1)};
+        add(a, x, NULL, 1);
+        add(b, x, NULL, 1);
+        if (i == 1 || i == 100)
+            free(forces_of(a));
+    }
+    def.method = PSYS_PAIR_DIRECT;
+    add_pair(b, &def);
+    double *fa = forces_of(a), *fb = forces_of(b);
+    CHECK(memcmp(fa, fb, 400 * 3 * sizeof(double)) == 0);
+    free(fa);
+    free(fb);
+    psys_system_destroy(a);
+    psys_system_destroy(b);
+}
+
+/* ------------------------------------------------------------------ scenes */
+
+static psys_scene *load(const char *text, psys_error *err)
+{
+    psys_scene *s = psys_scene_load_string(text, strlen(text), err);
+    if (!s)
+        fprintf(stderr, "load: %s\n", err->message);
+    return s;
+}
+
+static const char *scene_box =
+    "{\"psys\": 1, \"dim\": 3, \"integrator\": \"verlet\", \"dt\": 0.005, \"steps\": 10,"
+    " \"box\": {\"lo\": [0, 0, -1], \"hi\": [3.3, 3.1, 2.2], \"periodic\": [true, true, false]},"
+    " \"particles\": ["
+    "  {\"id\": \"a\", \"x\": [0.1, 0.2, 0.3], \"v\": [1, 0, 0], \"charge\": 0.5},"
+    "  {\"x\": [3.2, 0.3, 0.2], \"charge\": -0.1},"
+    "  {\"x\": [1.1, 1.0, 0.7], \"mass\": 2},"
+    "  {\"x\": [1.6, 1.3, 0.9], \"v\": [0, 0.3, 0], \"charge\": -0}],"
+    " \"forces\": ["
+    "  {\"type\": \"pair\", \"law\": \"lennard-jones\", \"epsilon\": 0.3, \"sigma\": 0.33, \"cutoff\": 1.1,"
+    "   \"shift\": true, \"skin\": 0.3},"
+    "  {\"type\": \"pair\", \"law\": \"lennard-jones\", \"epsilon\": 0.1, \"sigma\": 0.2, \"method\": \"direct\"},"
+    "  {\"type\": \"pair\", \"law\": \"soft-repulsion\", \"k\": 10, \"radius\": 0.7, \"method\": \"grid\"}]}";
+
+static const char *scene_open =
+    "{\"psys\": 1, \"dim\": 2, \"integrator\": \"rk45\", \"duration\": 1,"
+    " \"particles\": [{\"x\": [0, 0], \"charge\": 1e-3}, {\"x\": [1, 0.1], \"v\": [0, 1]},"
+    "  {\"x\": [0.3, -0.7], \"charge\": -2.5}],"
+    " \"forces\": ["
+    "  {\"type\": \"pair\", \"law\": \"gravity\", \"G\": 0.1, \"softening\": 0.01},"
+    "  {\"type\": \"pair\", \"law\": \"gravity\", \"method\": \"barnes-hut\", \"theta\": 0.3},"
+    "  {\"type\": \"pair\", \"law\": \"coulomb\", \"k\": 2, \"method\": \"barnes-hut\"},"
+    "  {\"type\": \"pair\", \"law\": \"coulomb\"}]}";
+
+static void round_trip(const char *text, size_t nforces)
+{
+    psys_error err;
+    psys_scene *s1 = load(text, &err);
+    CHECK(s1 != NULL);
+    if (!s1)
+        return;
+    char *t1 = psys_scene_to_string(s1, NULL, &err);
+    CHECK(t1 != NULL);
+    psys_scene *s2 = t1 ? load(t1, &err) : NULL;
+    CHECK(s2 != NULL);
+    if (s2) {
+        char *t2 = psys_scene_to_string(s2, NULL, &err);
+        CHECK(t2 && strcmp(t1, t2) == 0);
+        free(t2);
+        psys_system *a = psys_scene_system(s1), *b = psys_scene_system(s2);
+        CHECK(psys_system_force_count(a) == nforces && psys_system_force_count(b) == nforces);
+        for (size_t i = 0; i < nforces; i++) {
+            psys_pair_def da, db;
+            CHECK(psys_system_pair(a, i, &da) == PSYS_OK && psys_system_pair(b, i, &db) == PSYS_OK);
+            CHECK(da.law == db.law && da.method == db.method && da.cutoff == db.cutoff && da.skin == db.skin
+                  && da.theta == db.theta && da.shift == db.shift && da.G == db.G && da.k == db.k);
+        }
+        for (size_t i = 0; i < psys_system_count(a); i++) {
+            CHECK(psys_system_charge(a, i) == psys_system_charge(b, i));
+            CHECK(signbit(psys_system_charge(a, i)) == signbit(psys_system_charge(b, i)));
+        }
+        double lo1[3], hi1[3], lo2[3], hi2[3];
+        bool p1[3], p2[3];
+        CHECK(psys_system_box(a, lo1, hi1, p1) == psys_system_box(b, lo2, hi2, p2));
+        double *fa = forces_of(a), *fb = forces_of(b);
+        size_t nd = psys_system_count(a) * (size_t)psys_system_dim(a);
+        CHECK(memcmp(fa, fb, nd * sizeof(double)) == 0);
+        CHECK(psys_system_potential_energy(a) == psys_system_potential_energy(b));
+        free(fa);
+        free(fb);
+        psys_scene_destroy(s2);
+    }
+    free(t1);
+    psys_scene_destroy(s1);
+}
+
+static void scene_round_trip(void)
+{
+    round_trip(scene_box, 3);
+    round_trip(scene_open, 4);
+    /* resolved values */
+    psys_error err;
+    psys_scene *s = load(scene_box, &err);
+    if (!s)
+        return;
+    psys_system *sys = psys_scene_system(s);
+    psys_pair_def d;
+    CHECK(psys_system_pair(sys, 0, &d) == PSYS_OK);
+    CHECK(d.law == PSYS_PAIR_LENNARD_JONES && d.method == PSYS_PAIR_GRID && d.skin == 0.3 && d.shift);
+    CHECK(psys_system_pair(sys, 1, &d) == PSYS_OK);
+    CHECK(d.cutoff == 2.5 * 0.2 && d.method == PSYS_PAIR_DIRECT && !d.shift);
+    CHECK(psys_system_pair(sys, 2, &d) == PSYS_OK);
+    CHECK(d.skin == 0.1 * 0.7 && d.cutoff == 0.7);
+    CHECK(psys_system_charge(sys, 0) == 0.5 && psys_system_charge(sys, 2) == 0);
+    double lo[3], hi[3];
+    bool per[3];
+    CHECK(psys_system_box(sys, lo, hi, per));
+    CHECK(lo[2] == -1 && hi[0] == 3.3 && per[0] && per[1] && !per[2]);
+    /* a run wraps particle 0 (moving -x... +x from 0.1) and particle 1 stays in the box */
+    psys_run *run = psys_run_create(s, &err);
+    CHECK(run != NULL);
+    while (run && !psys_run_done(run))
+        CHECK(psys_run_step(run, &err) == PSYS_OK);
+    const double *x = psys_system_positions(sys);
+    for (size_t i = 0; i < 4; i++)
+        for (int k = 0; k < 2; k++)
+            CHECK(x[i * 3 + k] >= lo[k] && x[i * 3 + k] < hi[k]);
+    psys_run_destroy(run);
+    psys_scene_destroy(s);
+    s = load(scene_open, &err);
+    if (!s)
+        return;
+    CHECK(psys_system_pair(psys_scene_system(s), 0, &d) == PSYS_OK);
+    CHECK(d.method == PSYS_PAIR_DIRECT && d.softening == 0.01 && d.G == 0.1);
+    CHECK(psys_system_pair(psys_scene_system(s), 2, &d) == PSYS_OK);
+    CHECK(d.method == PSYS_PAIR_BARNES_HUT && d.theta == 0.5 && d.k == 2);
+    CHECK(psys_system_pair(psys_scene_system(s), 3, &d) == PSYS_OK);
+    CHECK(d.k == 1 && d.method == PSYS_PAIR_DIRECT);
+    psys_scene_destroy(s);
+}
+
+/* DESIGN §3a: A + B steps in one run equal A steps, a checkpoint, and B
+ * resumed steps, bit for bit. Pair forces do not depend on when neighbour
+ * lists were built, and positions wrapped into the box are saved exactly. */
+static void checkpoint_resume_bit_exact(void)
+{
+    char text[20000];
+    size_t len = (size_t)snprintf(text, sizeof text,
+                                  "{\"psys\": 1, \"dim\": 3, \"integrator\": \"verlet\", \"dt\": 0.01, \"steps\": 30,"
+                                  " \"box\": {\"lo\": [0, 0, 0], \"hi\": [6, 6, 6]}, \"particles\": [");
+    rng_state = 2024;
+    for (int i = 0; i < 125; i++)
+        len += (size_t)snprintf(text + len, sizeof text - len, "%s{\"x\": [%.17g, %.17g, %.17g], \"v\": [%.17g, %.17g, %.17g]}",
+                                i ? ", " : "", 1.2 * (i % 5) + 0.1, 1.2 * (i / 5 % 5) + 0.1, 1.2 * (i / 25) + 0.1,
+                                urand(-2, 2), urand(-2, 2), urand(-2, 2));
+    snprintf(text + len, sizeof text - len,
+             "], \"forces\": [{\"type\": \"pair\", \"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 0.6,"
+             " \"cutoff\": 1.6, \"skin\": 0.2}]}");
+    psys_error err;
+    psys_scene *full = load(text, &err), *half = load(text, &err);
+    CHECK(full && half);
+    if (!full || !half)
+        return;
+    psys_run *r = psys_run_create(full, &err);
+    while (!psys_run_done(r))
+        CHECK(psys_run_step(r, &err) == PSYS_OK);
+    psys_run_destroy(r);
+    psys_scene_settings(half)->steps = 13;
+    r = psys_run_create(half, &err);
+    while (!psys_run_done(r))
+        CHECK(psys_run_step(r, &err) == PSYS_OK);
+    psys_resume_state rs = psys_run_resume_state(r);
+    psys_run_destroy(r);
+    char *ck = psys_scene_to_string(half, &rs, &err);
+    CHECK(ck != NULL);
+    psys_scene *resumed = ck ? load(ck, &err) : NULL;
+    CHECK(resumed != NULL);
+    if (resumed) {
+        psys_scene_settings(resumed)->steps = 17;
+        r = psys_run_create(resumed, &err);
+        while (!psys_run_done(r))
+            CHECK(psys_run_step(r, &err) == PSYS_OK);
+        psys_run_destroy(r);
+        psys_system *a = psys_scene_system(full), *b = psys_scene_system(resumed);
+        CHECK(psys_system_time(a) == psys_system_time(b));
+        CHECK(memcmp(psys_system_positions(a), psys_system_positions(b), 125 * 3 * sizeof(double)) == 0);
+        CHECK(memcmp(psys_system_velocities(a), psys_system_velocities(b), 125 * 3 * sizeof(double)) == 0);
+        const double *x = psys_system_positions(a);
+        for (int i = 0; i < 125 * 3; i++)
+            CHECK(x[i] >= 0 && x[i] < 6);
+        psys_scene_destroy(resumed);
+    }
+    free(ck);
+    psys_scene_destroy(full);
+    psys_scene_destroy(half);
+}
+
+static void expect_error(const char *text, const char *message)
+{
+    psys_error err;
+    psys_scene *s = psys_scene_load_string(text, strlen(text), &err);
+    CHECK(s == NULL);
+    if (s) {
+        fprintf(stderr, "accepted: %s\n", text);
+        psys_scene_destroy(s);
+        return;
+    }
+    CHECK(err.code == PSYS_ERR_INVALID);
+    CHECK_STR(err.message, message);
+}
+
+static void scene_bad_input(void)
+{
+#define P2 "{\"psys\": 1, \"dim\": 2, \"particles\": [{\"x\": [0, 0]}, {\"x\": [1, 0]}], "
+#define F(body) P2 "\"forces\": [{\"type\": \"gravity\"}, {\"type\": \"pair\", " body "}]}"
+    expect_error(F("\"G\": 1"), "forces[1].law: required key missing");
+    expect_error(F("\"law\": 3"), "forces[1].law: must be a string (got 3)");
+    expect_error(F("\"law\": \"yukawa\""),
+                 "forces[1].law: unknown pair law (known: gravity, coulomb, lennard-jones, soft-repulsion) "
+                 "(got \"yukawa\")");
+    expect_error(F("\"law\": \"gravity\", \"method\": \"tree\""),
+                 "forces[1].method: unknown method (known: direct, grid, barnes-hut) (got \"tree\")");
+    expect_error(F("\"law\": \"gravity\", \"method\": 1"), "forces[1].method: must be a string (got 1)");
+    expect_error(F("\"law\": \"gravity\", \"method\": \"grid\""),
+                 "forces[1].method: grid needs a law with a cutoff (lennard-jones, soft-repulsion) (got \"grid\")");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 1, \"method\": \"barnes-hut\""),
+                 "forces[1].method: barnes-hut is only for the long-range laws gravity and coulomb "
+                 "(got \"barnes-hut\")");
+    expect_error(F("\"law\": \"gravity\", \"skin\": 0.1"), "forces[1].skin: only used by method \"grid\" (got 0.1)");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 1, \"theta\": 0.5"),
+                 "forces[1].theta: only used by method \"barnes-hut\" (got 0.5)");
+    expect_error(F("\"law\": \"gravity\", \"G\": 1, \"epsilon\": 1"), "forces[1].epsilon: unknown key");
+    expect_error(F("\"law\": \"coulomb\", \"G\": 1"), "forces[1].G: unknown key");
+    expect_error(F("\"law\": \"gravity\", \"G\": -1"), "forces[1].G: must be >= 0 (got -1)");
+    expect_error(F("\"law\": \"gravity\", \"softening\": -0.1"), "forces[1].softening: must be >= 0 (got -0.1)");
+    expect_error(F("\"law\": \"gravity\", \"G\": \"big\""), "forces[1].G: must be a number (got \"big\")");
+    expect_error(F("\"law\": \"coulomb\", \"k\": -2"), "forces[1].k: must be >= 0 (got -2)");
+    expect_error(F("\"law\": \"lennard-jones\", \"sigma\": 1"), "forces[1].epsilon: required key missing");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1"), "forces[1].sigma: required key missing");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 0"), "forces[1].sigma: must be > 0 (got 0)");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": -1, \"sigma\": 1"),
+                 "forces[1].epsilon: must be >= 0 (got -1)");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 1, \"cutoff\": 0"),
+                 "forces[1].cutoff: must be > 0 (got 0)");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 1, \"shift\": 1"),
+                 "forces[1].shift: must be true or false (got 1)");
+    expect_error(F("\"law\": \"lennard-jones\", \"epsilon\": 1, \"sigma\": 1, \"skin\": -1"),
+                 "forces[1].skin: must be >= 0 (got -1)");
+    expect_error(F("\"law\": \"gravity\", \"method\": \"barnes-hut\", \"theta\": -0.5"),
+                 "forces[1].theta: must be >= 0 (got -0.5)");
+    expect_error(F("\"law\": \"soft-repulsion\", \"k\": 1"), "forces[1].radius: required key missing");
+    expect_error(F("\"law\": \"soft-repulsion\", \"radius\": 1"), "forces[1].k: required key missing");
+    expect_error(F("\"law\": \"soft-repulsion\", \"k\": 1, \"radius\": 1, \"cutoff\": 2"),
+                 "forces[1].cutoff: unknown key");
+#undef F
+    /* charges */
+    expect_error("{\"psys\": 1, \"dim\": 2, \"particles\": [{\"x\": [0, 0], \"charge\": \"+\"}]}",
+                 "particles[0].charge: must be a number (got \"+\")");
+    expect_error("{\"psys\": 1, \"dim\": 2, \"particles\": [{\"x\": [0, 0], \"charge\": 1e999}]}",
+                 "particles[0].charge: must be finite (got inf)");
+    /* box */
+#define B(body) "{\"psys\": 1, \"dim\": 2, \"box\": " body "}"
+    expect_error(B("[0, 1]"), "box: must be an object {\"lo\", \"hi\", \"periodic\"} (got [0,1])");
+    expect_error(B("{\"lo\": [0, 0]}"), "box.hi: required key missing");
+    expect_error(B("{\"hi\": [1, 1]}"), "box.lo: required key missing");
+    expect_error(B("{\"lo\": [0, 0, 0], \"hi\": [1, 1]}"),
+                 "box.lo: must be an array of 2 numbers (dim is 2) (got [0,0,0])");
+    expect_error(B("{\"lo\": [0, 0], \"hi\": [1, 0]}"), "box.hi[1]: must be greater than box.lo[1] (0) (got 0)");
+    expect_error(B("{\"lo\": [0, 0], \"hi\": [1, 1], \"periodic\": true}"),
+                 "box.periodic: must be an array of 2 true/false values (dim is 2) (got true)");
+    expect_error(B("{\"lo\": [0, 0], \"hi\": [1, 1], \"periodic\": [true, 1]}"),
+                 "box.periodic[1]: must be true or false (got 1)");
+    expect_error(B("{\"lo\": [0, 0], \"hi\": [1, 1], \"wrap\": true}"), "box.wrap: unknown key");
+#undef B
+#define PB(periodic, force)                                                                                  \
+    "{\"psys\": 1, \"dim\": 2, \"box\": {\"lo\": [0, 0], \"hi\": [2, 1], \"periodic\": " periodic "}, "     \
+    "\"forces\": [" force "]}"
+    expect_error(PB("[true, true]", "{\"type\": \"pair\", \"law\": \"gravity\"}"),
+                 "forces[0].law: gravity has no cutoff, so it cannot be used with a periodic box (no Ewald sums) "
+                 "(got \"gravity\")");
+    expect_error(PB("[false, true]", "{\"type\": \"pair\", \"law\": \"lennard-jones\", \"epsilon\": 1, "
+                                     "\"sigma\": 0.1, \"cutoff\": 0.5}"),
+                 "forces[0].cutoff: must be less than half the periodic box (box length 1 on axis 1) (got 0.5)");
+    expect_error(PB("[true, false]", "{\"type\": \"pair\", \"law\": \"soft-repulsion\", \"k\": 1, \"radius\": 1.5}"),
+                 "forces[0].radius: must be less than half the periodic box (box length 2 on axis 0) (got 1.5)");
+    /* a free axis has no limit; the default periodic is all true */
+    psys_error err;
+    const char *ok = PB("[true, false]", "{\"type\": \"pair\", \"law\": \"lennard-jones\", \"epsilon\": 1, "
+                                         "\"sigma\": 0.1, \"cutoff\": 0.9}");
+    psys_scene *s = load(ok, &err);
+    CHECK(s != NULL);
+    psys_scene_destroy(s);
+    expect_error("{\"psys\": 1, \"dim\": 2, \"box\": {\"lo\": [0, 0], \"hi\": [2, 1]}, \"forces\": [{\"type\": \"pair\","
+                 " \"law\": \"coulomb\"}]}",
+                 "forces[0].law: coulomb has no cutoff, so it cannot be used with a periodic box (no Ewald sums) "
+                 "(got \"coulomb\")");
+#undef PB
+#undef P2
+}
+
+static const check_case cases[] = {
+    {"gravity_hand_values", gravity_hand_values},
+    {"coulomb_hand_values", coulomb_hand_values},
+    {"lennard_jones_hand_values", lennard_jones_hand_values},
+    {"soft_repulsion_hand_values", soft_repulsion_hand_values},
+    {"user_law_hand_values", user_law_hand_values},
+    {"newton_third_law", newton_third_law},
+    {"lj_cluster_energy", lj_cluster_energy},
+    {"grid_equals_direct_2d", grid_equals_direct_2d},
+    {"grid_equals_direct_3d", grid_equals_direct_3d},
+    {"grid_equals_direct_periodic_2d", grid_equals_direct_periodic_2d},
+    {"grid_equals_direct_periodic_3d", grid_equals_direct_periodic_3d},
+    {"grid_rebuild_criterion", grid_rebuild_criterion},
+    {"grid_cache_matches_direct", grid_cache_matches_direct},
+    {"minimum_image", minimum_image},
+    {"wrapping", wrapping},
+    {"box_validation", box_validation},
+    {"thread_determinism_grid", thread_determinism_grid},
+    {"thread_determinism_direct_bh", thread_determinism_direct_bh},
+    {"barnes_hut_error_2d", barnes_hut_error_2d},
+    {"barnes_hut_error_3d", barnes_hut_error_3d},
+    {"kepler_orbit_closes", kepler_orbit_closes},
+    {"figure_eight_returns", figure_eight_returns},
+    {"jacobians_match_differences", jacobians_match_differences},
+    {"particles_added_later", particles_added_later},
+    {"scene_round_trip", scene_round_trip},
+    {"checkpoint_resume_bit_exact", checkpoint_resume_bit_exact},
+    {"scene_bad_input", scene_bad_input},
+    {NULL, NULL},
+};
+
+int main(int argc, char **argv) { return check_main(argc, argv, cases); }
