@@ -218,13 +218,6 @@ static psys_status parse_string(psys__parse *p, const cJSON *obj, const char *pa
     return PSYS_OK;
 }
 
-/* Keys DESIGN reserves for features this version does not implement yet:
- * rejected by name so a user is not told a documented key is a typo. */
-static psys_status unsupported(psys__parse *p, const char *path, const cJSON *item)
-{
-    return psys__parse_fail(p, path, item, "is not supported by this version of psys yet");
-}
-
 psys_status psys__parse_frames(psys__parse *p, const cJSON *item, const char *path, double **frames,
                                size_t *count)
 {
@@ -402,10 +395,6 @@ static psys_status parse_force(psys__parse *p, const cJSON *obj, const char *pat
     for (const psys__force_io *const *io = psys__force_types; *io; io++)
         if (strcmp((*io)->type, type->valuestring) == 0)
             return (*io)->parse(p, obj, path);
-    static const char *const planned[] = {NULL};
-    for (const char *const *t = planned; *t; t++)
-        if (strcmp(*t, type->valuestring) == 0)
-            return unsupported(p, kp, type);
     char known[256] = "";
     for (const psys__force_io *const *io = psys__force_types; *io; io++)
         snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", io == psys__force_types ? "" : ", ",
