@@ -414,7 +414,7 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     size_t nchunks = (n + CHUNK - 1) / CHUNK;
     int ntf = pair_threads(p, 64.0 * (double)n);
     double per = g->per_particle * 1.2 + 4;
-    if (per > (double)n)
+    if (!(per <= (double)n)) /* also NaN (a huge radius makes the density estimate inf·0) */
         per = (double)n;
     for (int exact = 0;; exact++) {
         g->chunk_off[0] = 0;
