@@ -209,6 +209,8 @@ psys_status psys__parse_number(psys__parse *p, const struct cJSON *obj, const ch
 /** Read a dim-vector at key (required if def is NULL, else defaults to def). */
 psys_status psys__parse_vec(psys__parse *p, const struct cJSON *obj, const char *path, const char *key,
                             const double *def, double *out);
+/** Read a dim-vector from the array item it (kp names it in messages). */
+psys_status psys__parse_vec_item(psys__parse *p, const struct cJSON *it, const char *kp, int dim, double *out);
 /** Read a particle reference (id string or index) at key. */
 psys_status psys__parse_ref(psys__parse *p, const struct cJSON *obj, const char *path, const char *key, size_t *out);
 /** Read a particle reference from item itself (an array element); path names it. */

@@ -142,12 +142,17 @@ psys_status psys__parse_vec(psys__parse *p, const cJSON *obj, const char *path, 
             out[k] = def[k];
         return PSYS_OK;
     }
-    if (!cJSON_IsArray(it) || cJSON_GetArraySize(it) != d)
-        return psys__parse_fail(p, kp, it, "must be an array of %d numbers (dim is %d)", d, d);
+    return psys__parse_vec_item(p, it, kp, d, out);
+}
+
+psys_status psys__parse_vec_item(psys__parse *p, const cJSON *it, const char *kp, int dim, double *out)
+{
+    if (!cJSON_IsArray(it) || cJSON_GetArraySize(it) != dim)
+        return psys__parse_fail(p, kp, it, "must be an array of %d numbers (dim is %d)", dim, dim);
     int k = 0;
     for (const cJSON *c = it->child; c; c = c->next, k++) {
         if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble)) {
-            char ep[280];
+            char ep[400];
             snprintf(ep, sizeof ep, "%s[%d]", kp, k);
             return psys__parse_fail(p, ep, c, "must be a finite number");
         }

@@ -865,18 +865,7 @@ static psys_status get_size(psys__parse *p, const cJSON *obj, const char *path, 
 /* A dim-vector from an array item (as psys__parse_vec does for keys). */
 static psys_status vec_item(psys__parse *p, const cJSON *it, const char *kp, int dim, double *out)
 {
-    if (!cJSON_IsArray(it) || cJSON_GetArraySize(it) != dim)
-        return psys__parse_fail(p, kp, it, "must be an array of %d numbers (dim is %d)", dim, dim);
-    int k = 0;
-    for (const cJSON *c = it->child; c; c = c->next, k++) {
-        if (!cJSON_IsNumber(c) || !isfinite(c->valuedouble)) {
-            char ep[400];
-            snprintf(ep, sizeof ep, "%s[%d]", kp, k);
-            return psys__parse_fail(p, ep, c, "must be a finite number");
-        }
-        out[k] = c->valuedouble;
-    }
-    return PSYS_OK;
+    return psys__parse_vec_item(p, it, kp, dim, out);
 }
 
 /* Optional "axes": an array of nd dim-vectors. */
