@@ -18,6 +18,9 @@
 
 enum { Y0, YDOT, Y1, M_, B_, DV, R_, Z_, P_, Q_, KV, NBUF };
 
+/* The matrix is symmetric, so only its upper triangle (diagonal blocks
+ * included) is stored: block (i, j) with j >= i; the diagonal block is the
+ * first of each row. Half the bytes per product, which is memory bound. */
 typedef struct bsr {
     size_t nb;         /* block rows */
     int bs;            /* block size */
@@ -29,6 +32,15 @@ typedef struct bsr {
     size_t *miss;      /* pairs (i, j) flattened */
     size_t nmiss, miss_cap;
     double *pinv;      /* nb × bs²: inverse diagonal blocks (block-Jacobi preconditioner) */
+    /* The forces report their blocks in the same order every step: the block
+     * position of each report is cached (slot[c] for report c, with its pair
+     * in slot_pair[2c], slot_pair[2c+1]) so assembly skips the binary
+     * search; a report that does not match its cached pair falls back to
+     * searching. */
+    size_t *slot, *slot_pair;
+    size_t nslot;      /* capacity (reports of the assembly that built the pattern) */
+    size_t ncall;      /* reports in the current assembly */
+    bool slot_fill;    /* this assembly records slots */
     /* assembly context */
     double h;
     const double *v0;
@@ -44,6 +56,8 @@ static void bsr_free(bsr *m)
     free(m->val);
     free(m->miss);
     free(m->pinv);
+    free(m->slot);
+    free(m->slot_pair);
     free(m);
 }
 
@@ -87,21 +101,34 @@ static void assemble_add(psys_jacobian *J, size_t i, size_t j, const double *dfd
         for (int r = 0; r < b; r++)
             for (int c = 0; c < b; c++)
                 m->kv[i * b + r] += dfdx[r * b + c] * m->v0[j * b + c];
-    long ij = bsr_find(m, i, j), ji = bsr_find(m, j, i);
-    if (ij < 0 || ji < 0) {
-        if (ij < 0)
-            note_miss(m, i, j);
-        if (ji < 0)
-            note_miss(m, j, i);
+    size_t call = m->ncall++;
+    size_t lo = i < j ? i : j, hi = i < j ? j : i;
+    long e;
+    if (call < m->nslot && !m->slot_fill && m->slot_pair[2 * call] == i && m->slot_pair[2 * call + 1] == j) {
+        e = (long)m->slot[call];
+    } else {
+        e = bsr_find(m, lo, hi);
+        if (call < m->nslot && m->slot_fill && e >= 0) {
+            m->slot[call] = (size_t)e;
+            m->slot_pair[2 * call] = i;
+            m->slot_pair[2 * call + 1] = j;
+        }
+    }
+    if (e < 0) {
+        note_miss(m, lo, hi);
         return;
     }
+    /* ½B at (i, j) and ½Bᵀ at (j, i): the stored upper block (lo, hi) gets
+     * ½B (i < j), ½Bᵀ (i > j) or ½(B + Bᵀ) on the diagonal. */
     double h = m->h, h2 = h * h;
-    double *aij = m->val + (size_t)ij * b * b, *aji = m->val + (size_t)ji * b * b;
+    double *a = m->val + (size_t)e * b * b;
     for (int r = 0; r < b; r++)
         for (int c = 0; c < b; c++) {
-            double e = -h2 * (dfdx ? dfdx[r * b + c] : 0.0) - h * (dfdv ? dfdv[r * b + c] : 0.0);
-            aij[r * b + c] += 0.5 * e;
-            aji[c * b + r] += 0.5 * e;
+            double x = 0.5 * (-h2 * (dfdx ? dfdx[r * b + c] : 0.0) - h * (dfdv ? dfdv[r * b + c] : 0.0));
+            if (i <= j)
+                a[r * b + c] += x;
+            if (i >= j)
+                a[c * b + r] += x;
         }
 }
 
@@ -143,12 +170,20 @@ static psys_status bsr_rebuild(bsr *m)
         }
     size_t *col = psys__calloc(u, sizeof(size_t));
     double *val = psys__calloc(u * (size_t)m->bs * m->bs, sizeof(double));
-    if (!col || !val) {
+    size_t *slot = psys__calloc(m->ncall, sizeof(size_t)), *slot_pair = psys__calloc(m->ncall, 2 * sizeof(size_t));
+    if (!col || !val || (m->ncall && (!slot || !slot_pair))) {
         free(pairs);
         free(col);
         free(val);
+        free(slot);
+        free(slot_pair);
         return PSYS_ERR_NOMEM;
     }
+    free(m->slot);
+    free(m->slot_pair);
+    m->slot = slot;
+    m->slot_pair = slot_pair;
+    m->nslot = m->ncall;
     memset(m->row, 0, (m->nb + 1) * sizeof(size_t));
     for (size_t q = 0; q < u; q++) {
         m->row[pairs[2 * q] + 1]++;
@@ -200,11 +235,14 @@ static psys_status assemble(psys_solver *s, bsr *m, double t, const double *y0, 
             memset(m->val, 0, m->nnz * (size_t)m->bs * m->bs * sizeof(double));
         memset(kv, 0, np * sizeof(double));
         m->nmiss = 0;
+        m->ncall = 0;
         psys_status st = s->ode.jacobian(s->ode.ctx, t, y0, &J);
+        m->slot_fill = false;
         if (st != PSYS_OK)
             return psys__fail(&s->err, st, "the force Jacobians could not be evaluated");
         if (m->nmiss == 0 && m->nnz > 0)
             return PSYS_OK;
+        m->slot_fill = true; /* the assembly after a rebuild records the slots */
         if (bsr_rebuild(m) != PSYS_OK)
             return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory building the implicit-euler matrix");
     }
@@ -212,23 +250,49 @@ static psys_status assemble(psys_solver *s, bsr *m, double t, const double *y0, 
                          : psys__fail(&s->err, PSYS_ERR_NOMEM, "the implicit-euler matrix pattern did not settle");
 }
 
-/* q = S (M + A) p, S zeroing prescribed components. */
+/* q = S (M + A) p, S zeroing prescribed components; B is the block size,
+ * a constant in each caller so the block loops unroll. Row i's stored
+ * blocks (i, j), j > i, act as (i, j) on p_j and, transposed, as (j, i) on
+ * p_i; q is accumulated in row order, so the sums never depend on threads. */
+static inline void apply_matrix_b(const bsr *m, const double *restrict mass, const double *restrict p,
+                                  double *restrict q, const int B)
+{
+    const size_t *restrict row = m->row, *restrict col = m->col;
+    const double *restrict val = m->val;
+    size_t n = m->nb * (size_t)B;
+    for (size_t k = 0; k < n; k++)
+        q[k] = 0.0;
+    for (size_t i = 0; i < m->nb; i++) {
+        const double *pi = p + i * B;
+        double acc[3] = {0, 0, 0};
+        const double *d = val + row[i] * (size_t)(B * B); /* diagonal block */
+        for (int r = 0; r < B; r++)
+            for (int c = 0; c < B; c++)
+                acc[r] += d[r * B + c] * pi[c];
+        for (size_t e = row[i] + 1; e < row[i + 1]; e++) {
+            const double *blk = val + e * (size_t)(B * B), *pj = p + col[e] * B;
+            double *qj = q + col[e] * B;
+            for (int r = 0; r < B; r++)
+                for (int c = 0; c < B; c++) {
+                    acc[r] += blk[r * B + c] * pj[c];
+                    qj[c] += blk[r * B + c] * pi[r];
+                }
+        }
+        for (int r = 0; r < B; r++)
+            q[i * B + r] += acc[r];
+    }
+    for (size_t k = 0; k < n; k++)
+        q[k] = mass[k] > 0 ? mass[k] * p[k] + q[k] : 0.0;
+}
+
 static void apply_matrix(const bsr *m, const double *mass, const double *p, double *q)
 {
-    int b = m->bs;
-    for (size_t i = 0; i < m->nb; i++) {
-        double acc[3] = {0, 0, 0};
-        for (size_t e = m->row[i]; e < m->row[i + 1]; e++) {
-            const double *blk = m->val + e * (size_t)b * b, *pj = p + m->col[e] * b;
-            for (int r = 0; r < b; r++)
-                for (int c = 0; c < b; c++)
-                    acc[r] += blk[r * b + c] * pj[c];
-        }
-        for (int r = 0; r < b; r++) {
-            size_t k = i * b + r;
-            q[k] = mass[k] > 0 ? mass[k] * p[k] + acc[r] : 0.0;
-        }
-    }
+    if (m->bs == 3)
+        apply_matrix_b(m, mass, p, q, 3);
+    else if (m->bs == 2)
+        apply_matrix_b(m, mass, p, q, 2);
+    else
+        apply_matrix_b(m, mass, p, q, m->bs);
 }
 
 /* Inverse of the symmetric positive-definite b×b block a (b ≤ 3) into out;
@@ -306,7 +370,7 @@ static psys_status implicit_step(psys_solver *s, double h, double *h_taken)
         dv[k] = 0;
     }
     for (size_t i = 0; i < m->nb; i++) {
-        long e = bsr_find(m, i, i);
+        long e = (long)m->row[i]; /* the diagonal block leads its row */
         double blk[9];
         for (int rr = 0; rr < b; rr++)
             for (int c = 0; c < b; c++)
