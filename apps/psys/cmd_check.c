@@ -42,6 +42,16 @@ int cmd_check(int argc, char **argv)
         cli_error("%s: %s", name, err.message);
         return EXIT_BAD_INPUT;
     }
+    /* A scene psys run would refuse (src/run.c counts the steps the same way). */
+    const psys_settings *cs = psys_scene_settings(scene);
+    if (!cs->use_steps && strcmp(cs->integrator, "rk45") != 0) {
+        double q = cs->duration / cs->dt;
+        if (!(ceil(q - 1e-9 * q) <= 1e15)) { /* NaN too: inf - inf */
+            cli_error("%s: duration/dt asks for more than 1e15 steps", name);
+            psys_scene_destroy(scene);
+            return EXIT_BAD_INPUT;
+        }
+    }
     /* Open the --save file first: a path that cannot be written is bad usage,
      * reported before anything is printed. */
     outfile saved;
@@ -76,7 +86,7 @@ int cmd_check(int argc, char **argv)
         if (strcmp(set->integrator, "rk45") == 0) {
             fprintf(info, "steps: adaptive\n");
         } else {
-            double q = set->duration / set->dt;
+            double q = set->duration / set->dt; /* at most 1e15 steps: checked above */
             fprintf(info, "steps: %.0f\n", ceil(q - 1e-9 * q));
         }
         fprintf(info, "duration: %.17g\n", set->duration);

@@ -64,6 +64,8 @@ psys run hostile.json --out never.csv
 expect_rc 2 "duration/dt over 1e15 steps"
 expect_stderr "psys: hostile.json: duration/dt asks for more than 1e15 steps" "duration/dt over 1e15 steps"
 expect_absent never.csv "duration/dt over 1e15 steps: nothing written"
+refused "duration/dt over 1e15 steps (psys check agrees with psys run)" "duration/dt asks for more than 1e15 steps" \
+    '{"psys": 1, "dt": 1e-300, "duration": 1e300}'
 
 # A big legitimate file: 100000 named particles and 99999 springs naming them
 # load in linear time (ids are hashed; a linear search made this quadratic).
