@@ -7,8 +7,14 @@ set -euo pipefail
 # run time, the MP4 tests are skipped without it); libxml2-utils: xmllint,
 # which the VTK XML tests use to parse the files back; clang and
 # libclang-rt-14-dev: libFuzzer for the fuzz targets (fuzz/, docs/trust.md).
+# The viewer (psys view, apps/view/): libsdl2-dev, libepoxy-dev (OpenGL 3.3
+# core), libstb-dev (stb_truetype for its text), libgl1-mesa-dri (software
+# GL); its tests run it under xvfb (+ xauth) and drive it with xdotool,
+# x11-utils (xwininfo), imagemagick (import: X screenshots) and jq (reads
+# the saved scene).
 PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev libcairo2-dev fonts-dejavu-core ffmpeg libxml2-utils
-      clang libclang-rt-14-dev)
+      clang libclang-rt-14-dev
+      libsdl2-dev libepoxy-dev libstb-dev libgl1-mesa-dri xvfb xauth xdotool x11-utils imagemagick jq)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

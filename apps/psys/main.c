@@ -3,6 +3,10 @@
 
 #include <string.h>
 
+#ifdef PSYS_HAVE_VIEW
+#include "../view/view.h"
+#endif
+
 static const char usage[] =
     "usage:\n"
     "  psys run SCENE [--dt H] [--steps N | --duration T] [--integrator NAME]\n"
@@ -12,7 +16,9 @@ static const char usage[] =
     "  psys check SCENE [--save FILE]   validate, print a summary, optionally write it back\n"
     "  psys plot FILE.csv --y COLUMNS [--x COLUMN] [--particle I] [--size WxH]\n"
     "                 [--title TEXT] --out FILE.png   plot columns of a psys CSV file\n"
-    "  psys view [SCENE]                interactive viewer (not in this version yet)\n"
+    "  psys view [SCENE] [--save FILE] [--integrator NAME] [--dt H] [--paused]\n"
+    "                 [--size WxH] [--controls | --no-controls] [--frames N] [--screenshot FILE.png]\n"
+    "                                   interactive viewer and editor (empty 2-D scene if none)\n"
     "  psys bench [CASE] [--integrator NAME] [--reps N] [--seconds S]\n"
     "                                   benchmark cases (cloth-100, cloth-256), JSON lines\n"
     "  psys --help | --version\n"
@@ -42,6 +48,17 @@ static const char usage[] =
     "  --resume FILE     continue from a checkpoint; --steps/--duration count from it\n"
     "  --quiet           no progress bar and no interruption notice\n"
     "\n"
+    "view options (keys and mouse: H in the viewer, docs/cli.md):\n"
+    "  --save FILE       where Ctrl+S saves (default: SCENE, or untitled.json)\n"
+    "  --integrator NAME, --dt H   solver and step to start with (keys 1-7, [ and ])\n"
+    "  --paused          start paused (Space runs)\n"
+    "  --size WxH        window size (default 960x720)\n"
+    "  --controls, --no-controls   show or hide the list of controls at the start\n"
+    "                    (default: shown for an empty scene)\n"
+    "  --frames N        quit after drawing N frames\n"
+    "  --screenshot FILE.png   write the last frame drawn (after --frames N, default 1)\n"
+    "                    as PNG, print each particle's pixel, and quit\n"
+    "\n"
     "Exit status: 0 success; 1 the run failed (files keep every frame up to the last\n"
     "good state); 2 bad usage or bad scene (no file is created or touched);\n"
     "128+signal when interrupted by SIGINT or SIGTERM.\n";
@@ -70,8 +87,13 @@ int main(int argc, char **argv)
     if (strcmp(cmd, "plot") == 0)
         return cmd_plot(argc - 1, argv + 1);
     if (strcmp(cmd, "view") == 0) {
-        cli_error("view: the interactive viewer is not in this version of psys yet");
+#ifdef PSYS_HAVE_VIEW
+        return psys_view_main(argc - 1, argv + 1);
+#else
+        cli_error("view: this psys was built without the viewer (it needs SDL2 and libepoxy: "
+                  "apt-get install libsdl2-dev libepoxy-dev libstb-dev, then rebuild)");
         return EXIT_BAD_INPUT;
+#endif
     }
     cli_error("unknown command \"%s\" (see psys --help)", cmd);
     return EXIT_BAD_INPUT;

@@ -1,0 +1,107 @@
+# psys view, driven like a new user would (docs/cli.md "psys view"): under a
+# private Xvfb, xdotool opens an empty scene, clicks three particles A, B, C,
+# drags two springs (A-B, B-C), pins A with P, drags C with the mouse spring
+# (right button) and saves with Ctrl+S. The saved scene must hold exactly
+# those three particles, two springs and one pin (no mouse spring), C must
+# have followed the mouse spring, the file must load in `psys run`, and Q
+# must end the viewer with status 0.
+#
+# Timing: the machine may be loaded, so every wait polls for its condition
+# with a generous limit; the viewer handles X events strictly in order, so
+# clicks and keys need no pauses between them.
+# shellcheck disable=SC2034  # RC is read by the helpers in lib.sh
+. "$(dirname "$0")/lib.sh"
+. "$(dirname "$0")/view_x.sh"
+
+for tool in xdotool jq xwininfo; do
+    if ! command -v "$tool" >/dev/null 2>&1; then
+        fail "$tool is not installed (make deps installs it)"
+        finish
+    fi
+done
+
+# Empty 2-D scene: the view is 4 units high around the origin, so in a
+# 960x720 window pixel (px, py) is the point ((px - 480)/180, (360 - py)/180).
+"$PSYS" view --save saved.json --size 960x720 >view.out 2>view.err </dev/null &
+VIEW_PID=$!
+find_window() { WID=$(xdotool search --name '^psys' 2>/dev/null | head -n 1); [ -n "$WID" ] || ! kill -0 "$VIEW_PID" 2>/dev/null; }
+WID=
+if ! wait_for 60 find_window || [ -z "$WID" ]; then
+    fail "no window titled psys... appeared (stderr: $(head -c 600 view.err))"
+    kill "$VIEW_PID" 2>/dev/null
+    finish
+fi
+ok
+viewable() { xwininfo -id "$WID" 2>/dev/null | grep -q 'IsViewable'; }
+check "the window is mapped" wait_for 60 viewable
+check "the window title starts with psys" bash -c "xdotool getwindowname $WID | grep -q '^psys'"
+
+x() { xdotool "$@"; }
+# A (300,300), B (500,300), C (400,450): three clicks on empty space.
+x mousemove --window "$WID" 300 300 click 1 \
+  mousemove --window "$WID" 500 300 click 1 \
+  mousemove --window "$WID" 400 450 click 1
+# Springs A-B and B-C: left drags from one particle to another.
+x mousemove --window "$WID" 300 300 mousedown 1 mousemove --window "$WID" 400 310 \
+  mousemove --window "$WID" 500 300 mouseup 1
+x mousemove --window "$WID" 500 300 mousedown 1 mousemove --window "$WID" 450 380 \
+  mousemove --window "$WID" 400 450 mouseup 1
+# Pin A: P with the pointer over it.
+x mousemove --window "$WID" 300 300 key p
+# Drag C with the mouse spring toward (460, 560) and hold it there a while.
+x mousemove --window "$WID" 400 450 mousedown 3 mousemove --window "$WID" 430 500 \
+  mousemove --window "$WID" 460 560
+sleep 2
+x mouseup 3
+# The window really shows something (an X screenshot of it, not just GL's buffer).
+if command -v import >/dev/null 2>&1 && [ -n "${PSYS_PNG_PROBE:-}" ]; then
+    import -window "$WID" shown.png 2>/dev/null
+    "$PSYS_PNG_PROBE" shown.png 300 300 >probe.txt 2>&1
+    nonbg=$(awk '$1 == "nonbackground" { print $2 }' probe.txt)
+    check "the window shows the particles, springs and HUD ($nonbg pixels)" test "${nonbg:-0}" -gt 500
+fi
+x key ctrl+s
+saved() { [ -s saved.json ]; }
+check "Ctrl+S writes saved.json" wait_for 60 saved
+x key q
+exited() { ! kill -0 "$VIEW_PID" 2>/dev/null; }
+if wait_for 60 exited; then
+    wait "$VIEW_PID"
+    expect_eq 0 "$?" "Q ends the viewer with status 0"
+else
+    fail "the viewer did not exit after Q"
+    kill "$VIEW_PID" 2>/dev/null
+fi
+check "the viewer says where it saved" grep -q '^saved saved.json: 3 particles, 2 springs$' view.out
+if [ -s view.err ]; then
+    fail "the viewer printed on stderr: $(head -c 600 view.err)"
+fi
+
+if [ -s saved.json ]; then
+    expect_eq 2 "$(jq '.dim' saved.json)" "saved: dim"
+    expect_eq 3 "$(jq '.particles | length' saved.json)" "saved: three particles"
+    expect_eq 2 "$(jq '[.forces[] | select(.type == "spring")] | length' saved.json)" "saved: two springs"
+    expect_eq 2 "$(jq '.forces | length' saved.json)" "saved: no other forces (no mouse spring, no gravity)"
+    expect_eq "0-1 1-2" "$(jq -r '[.forces[] | "\(.a)-\(.b)"] | join(" ")' saved.json)" "saved: springs A-B and B-C"
+    expect_eq "true false false" "$(jq -r '[.particles[] | .fixed // false] | map(tostring) | join(" ")' saved.json)" \
+        "saved: only A is pinned"
+    # A is pinned where it was clicked: (300,300) -> (-1, 1/3).
+    expect_eq "-1 0.333333" "$(jq -r '.particles[0].x | map(. * 1000000 | round / 1000000) | map(tostring) | join(" ")' saved.json)" \
+        "saved: A at the clicked point"
+    # Rest lengths are the distances when joined: 200 px = 10/9, and B-C 180.28 px.
+    expect_eq "1.111111 1.001542" "$(jq -r '[.forces[].rest * 1000000 | round / 1000000] | map(tostring) | join(" ")' saved.json)" \
+        "saved: rest lengths are the distances at joining"
+    # C was made at (400,450) -> (-0.444, -0.5); the mouse spring pulled it
+    # toward (460,560) -> (-0.111, -1.111).
+    moved=$(jq '.particles[2].x as $c | (($c[0] + 0.4444444) * ($c[0] + 0.4444444) + ($c[1] + 0.5) * ($c[1] + 0.5)) | sqrt > 0.1' saved.json)
+    expect_eq true "$moved" "saved: C followed the mouse spring (x = $(jq -c '.particles[2].x' saved.json))"
+    psys check saved.json
+    expect_rc 0 "psys check on the saved scene"
+    check "check: 3 particles" grep -qx 'particles: 3' out.txt
+    check "check: 2 springs" grep -qx 'springs: 2' out.txt
+    check "check: 1 fixed" grep -qx 'fixed: 1' out.txt
+    psys run saved.json --steps 100 --out run.csv --quiet
+    expect_rc 0 "psys run on the saved scene"
+    expect_eq 304 "$(wc -l <run.csv | tr -d ' ')" "psys run writes 101 frames of 3 particles"
+fi
+finish
