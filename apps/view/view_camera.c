@@ -220,8 +220,8 @@ void vw_camera_orbit(vw_camera *c, double dx, double dy)
 {
     if (c->dim != 3)
         return;
-    c->az -= dx * 0.01;
-    c->el += dy * 0.01;
+    c->az -= dx * 0.006;
+    c->el += dy * 0.006;
     double lim = 89 * PI / 180;
     if (c->el > lim)
         c->el = lim;

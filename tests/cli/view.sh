@@ -10,8 +10,9 @@
 # with a generous limit; the viewer handles X events strictly in order, so
 # clicks and keys need no pauses between them.
 # shellcheck disable=SC2034  # RC is read by the helpers in lib.sh
-. "$(dirname "$0")/lib.sh"
-. "$(dirname "$0")/view_x.sh"
+HERE=$(cd "$(dirname "$0")" && pwd)
+. "$HERE/lib.sh"
+. "$HERE/view_x.sh"
 
 for tool in xdotool jq xwininfo; do
     if ! command -v "$tool" >/dev/null 2>&1; then
@@ -103,5 +104,56 @@ if [ -s saved.json ]; then
     psys run saved.json --steps 100 --out run.csv --quiet
     expect_rc 0 "psys run on the saved scene"
     expect_eq 304 "$(wc -l <run.csv | tr -d ' ')" "psys run writes 101 frames of 3 particles"
+fi
+
+# Second session on the saved scene, paused: G (gravity on), Delete on B
+# (B and both its springs go), Ctrl+Z (they come back), Delete on the A-B
+# spring, M on C (a circle motor), Ctrl+S to --save edited.json. Where the
+# particles are comes from a screenshot at the same window size: the
+# camera frames the scene the same way.
+if [ -s saved.json ]; then
+    "$PSYS" view saved.json --paused --size 960x720 --frames 1 --screenshot where.png >where.txt 2>where.err </dev/null
+    expect_eq 0 "$?" "screenshot of the saved scene"
+    px() { awk -v i="$1" '$1 == "particle" && $2 == i { print $3, $4 }' where.txt; }
+    read -r AX AY <<<"$(px 0)"
+    read -r BX BY <<<"$(px 1)"
+    read -r CX CY <<<"$(px 2)"
+    # a point on the A-B spring, a third of the way from A (away from both ends)
+    SX=$(((2 * AX + BX) / 3))
+    SY=$(((2 * AY + BY) / 3))
+    "$PSYS" view saved.json --paused --size 960x720 --save edited.json >view2.out 2>view2.err </dev/null &
+    VIEW_PID=$!
+    WID=
+    if wait_for 60 find_window && [ -n "$WID" ] && wait_for 60 viewable; then
+        x mousemove --window "$WID" 20 700 key g
+        x mousemove --window "$WID" "$BX" "$BY" key Delete
+        x key ctrl+z
+        x mousemove --window "$WID" "$SX" "$SY" key Delete
+        x mousemove --window "$WID" "$CX" "$CY" key m
+        x key ctrl+s
+        edited() { [ -s edited.json ]; }
+        check "Ctrl+S writes edited.json (--save)" wait_for 60 edited
+        x key Escape
+        if wait_for 60 exited; then
+            wait "$VIEW_PID"
+            expect_eq 0 "$?" "Esc ends the viewer with status 0"
+        else
+            fail "the viewer did not exit after Esc"
+            kill "$VIEW_PID" 2>/dev/null
+        fi
+    else
+        fail "second session: no window (stderr: $(head -c 600 view2.err))"
+        kill "$VIEW_PID" 2>/dev/null
+    fi
+    if [ -s edited.json ]; then
+        expect_eq 3 "$(jq '.particles | length' edited.json)" "edited: undo brought B back"
+        expect_eq "1-2" "$(jq -r '[.forces[] | select(.type == "spring") | "\(.a)-\(.b)"] | join(" ")' edited.json)" \
+            "edited: only the B-C spring is left"
+        expect_eq 1 "$(jq '[.forces[] | select(.type == "gravity")] | length' edited.json)" "edited: G turned gravity on"
+        expect_eq "true" "$(jq '.particles[0].fixed' edited.json)" "edited: A is still pinned"
+        expect_eq "circle" "$(jq -r '.particles[2].control.type' edited.json)" "edited: M made C a circle motor"
+        psys run edited.json --steps 50 --quiet
+        expect_rc 0 "psys run on the edited scene"
+    fi
 fi
 finish

@@ -4,7 +4,8 @@
 # 2-D and in 3-D (perspective). Bad options are refused before any window
 # opens. Needs tests/tools/png_probe ($PSYS_PNG_PROBE, tests/view.cmake).
 # shellcheck disable=SC2034  # RC is read by the helpers in lib.sh
-. "$(dirname "$0")/lib.sh"
+HERE=$(cd "$(dirname "$0")" && pwd)
+. "$HERE/lib.sh"
 
 PROBE=${PSYS_PNG_PROBE:-}
 if [ -z "$PROBE" ] || [ ! -x "$PROBE" ]; then
@@ -32,7 +33,7 @@ for flag in --save --screenshot --frames --paused --size --controls; do
     check "--help mentions view's $flag" grep -q -e "$flag\\b" out.txt
 done
 
-. "$(dirname "$0")/view_x.sh"
+. "$HERE/view_x.sh"
 
 # shot SCENE WxH NAME: screenshot after a few frames, paused at the start state.
 shot() {
