@@ -4,13 +4,14 @@
  *   (M - h ∂f/∂v - h² ∂f/∂x) Δv = h (f0 + h ∂f/∂x v0),  v1 = v0 + Δv,  x1 = x0 + h v1
  *
  * solved by conjugate gradient on a block-sparse
- * matrix (block = dimension), preconditioned with the inverse diagonal blocks
- * (block Jacobi). Prescribed components (mass 0: fixed and
+ * matrix (block = dimension), preconditioned with one aggregation-multigrid
+ * V-cycle (src/amg.c). Prescribed components (mass 0: fixed and
  * controlled particles) are filtered out of the solve, as in the paper.
  * The sparsity pattern is built on the first step and reused; it is rebuilt
  * (the only allocation) only when a force reports a new pair of particles.
  * Forces without Jacobians enter through f0 only (treated explicitly). */
 #include "solver.h"
+#include "amg.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -31,7 +32,7 @@ typedef struct bsr {
     /* pairs seen during an assembly that the pattern lacked */
     size_t *miss;      /* pairs (i, j) flattened */
     size_t nmiss, miss_cap;
-    double *pinv;      /* nb × bs²: inverse diagonal blocks (block-Jacobi preconditioner) */
+    psys__amg *amg;    /* the preconditioner; NULL until built for the current pattern */
     /* The forces report their blocks in the same order every step: the block
      * position of each report is cached (slot[c] for report c, with its pair
      * in slot_pair[2c], slot_pair[2c+1]) so assembly skips the binary
@@ -55,7 +56,7 @@ static void bsr_free(bsr *m)
     free(m->col);
     free(m->val);
     free(m->miss);
-    free(m->pinv);
+    psys__amg_destroy(m->amg);
     free(m->slot);
     free(m->slot_pair);
     free(m);
@@ -92,15 +93,14 @@ static void note_miss(bsr *m, size_t i, size_t j)
 }
 
 /* Sink: A += -h ∂f/∂v - h² ∂f/∂x, symmetrised (½B at (i,j), ½Bᵀ at (j,i)),
- * and kv_i += (∂f/∂x)_ij v0_j for the right-hand side. */
-static void assemble_add(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv)
+ * and kv_i += (∂f/∂x)_ij v0_j for the right-hand side. B is the block size,
+ * a constant in each instantiation so the block loops unroll. */
+static inline void assemble_add_b(bsr *m, size_t i, size_t j, const double *dfdx, const double *dfdv, const int B)
 {
-    bsr *m = J->ctx;
-    int b = m->bs;
     if (dfdx)
-        for (int r = 0; r < b; r++)
-            for (int c = 0; c < b; c++)
-                m->kv[i * b + r] += dfdx[r * b + c] * m->v0[j * b + c];
+        for (int r = 0; r < B; r++)
+            for (int c = 0; c < B; c++)
+                m->kv[i * B + r] += dfdx[r * B + c] * m->v0[j * B + c];
     size_t call = m->ncall++;
     size_t lo = i < j ? i : j, hi = i < j ? j : i;
     long e;
@@ -120,16 +120,26 @@ static void assemble_add(psys_jacobian *J, size_t i, size_t j, const double *dfd
     }
     /* ½B at (i, j) and ½Bᵀ at (j, i): the stored upper block (lo, hi) gets
      * ½B (i < j), ½Bᵀ (i > j) or ½(B + Bᵀ) on the diagonal. */
-    double h = m->h, h2 = h * h;
-    double *a = m->val + (size_t)e * b * b;
-    for (int r = 0; r < b; r++)
-        for (int c = 0; c < b; c++) {
-            double x = 0.5 * (-h2 * (dfdx ? dfdx[r * b + c] : 0.0) - h * (dfdv ? dfdv[r * b + c] : 0.0));
-            if (i <= j)
-                a[r * b + c] += x;
-            if (i >= j)
-                a[c * b + r] += x;
-        }
+    double cx = -0.5 * m->h * m->h, cv = -0.5 * m->h, x[9];
+    for (int k = 0; k < B * B; k++)
+        x[k] = (dfdx ? cx * dfdx[k] : 0.0) + (dfdv ? cv * dfdv[k] : 0.0);
+    double *a = m->val + (size_t)e * (size_t)(B * B);
+    if (i <= j)
+        for (int k = 0; k < B * B; k++)
+            a[k] += x[k];
+    if (i >= j)
+        for (int r = 0; r < B; r++)
+            for (int c = 0; c < B; c++)
+                a[c * B + r] += x[r * B + c];
+}
+
+static void assemble_add(psys_jacobian *J, size_t i, size_t j, const double *dfdx, const double *dfdv)
+{
+    bsr *m = J->ctx;
+    if (m->bs == 3) /* 2 or 3: checked by implicit_init */
+        assemble_add_b(m, i, j, dfdx, dfdv, 3);
+    else
+        assemble_add_b(m, i, j, dfdx, dfdv, 2);
 }
 
 static int cmp_pair(const void *a, const void *b)
@@ -194,6 +204,8 @@ static psys_status bsr_rebuild(bsr *m)
     free(pairs);
     free(m->col);
     free(m->val);
+    psys__amg_destroy(m->amg);
+    m->amg = NULL;
     m->col = col;
     m->val = val;
     m->nnz = u;
@@ -207,9 +219,11 @@ static psys_status implicit_init(psys_solver *s)
     if (!o->mass || !o->jacobian || o->block < 1 || o->npos % (size_t)o->block != 0)
         return psys__fail(&s->err, PSYS_ERR_INVALID,
                           "implicit-euler needs an ODE that offers masses and force Jacobians");
+    if (o->block != 2 && o->block != 3)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "implicit-euler needs Jacobian blocks of size 2 or 3 (got %d)",
+                          o->block);
     bsr *m = calloc(1, sizeof *m);
-    if (!m || !(m->row = psys__calloc(o->npos / (size_t)o->block + 1, sizeof(size_t)))
-        || !(m->pinv = psys__calloc(o->npos, (size_t)o->block * sizeof(double)))) {
+    if (!m || !(m->row = psys__calloc(o->npos / (size_t)o->block + 1, sizeof(size_t)))) {
         bsr_free(m);
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory creating implicit-euler");
     }
@@ -250,102 +264,48 @@ static psys_status assemble(psys_solver *s, bsr *m, double t, const double *y0, 
                          : psys__fail(&s->err, PSYS_ERR_NOMEM, "the implicit-euler matrix pattern did not settle");
 }
 
-/* q = S (M + A) p, S zeroing prescribed components; B is the block size,
- * a constant in each caller so the block loops unroll. Row i's stored
- * blocks (i, j), j > i, act as (i, j) on p_j and, transposed, as (j, i) on
- * p_i; q is accumulated in row order, so the sums never depend on threads. */
-static inline void apply_matrix_b(const bsr *m, const double *restrict mass, const double *restrict p,
-                                  double *restrict q, const int B)
-{
-    const size_t *restrict row = m->row, *restrict col = m->col;
-    const double *restrict val = m->val;
-    size_t n = m->nb * (size_t)B;
-    for (size_t k = 0; k < n; k++)
-        q[k] = 0.0;
-    for (size_t i = 0; i < m->nb; i++) {
-        const double *pi = p + i * B;
-        double acc[3] = {0, 0, 0};
-        const double *d = val + row[i] * (size_t)(B * B); /* diagonal block */
-        for (int r = 0; r < B; r++)
-            for (int c = 0; c < B; c++)
-                acc[r] += d[r * B + c] * pi[c];
-        for (size_t e = row[i] + 1; e < row[i + 1]; e++) {
-            const double *blk = val + e * (size_t)(B * B), *pj = p + col[e] * B;
-            double *qj = q + col[e] * B;
-            for (int r = 0; r < B; r++)
-                for (int c = 0; c < B; c++) {
-                    acc[r] += blk[r * B + c] * pj[c];
-                    qj[c] += blk[r * B + c] * pi[r];
-                }
-        }
-        for (int r = 0; r < B; r++)
-            q[i * B + r] += acc[r];
-    }
-    for (size_t k = 0; k < n; k++)
-        q[k] = mass[k] > 0 ? mass[k] * p[k] + q[k] : 0.0;
-}
-
-static void apply_matrix(const bsr *m, const double *mass, const double *p, double *q)
-{
-    if (m->bs == 3)
-        apply_matrix_b(m, mass, p, q, 3);
-    else if (m->bs == 2)
-        apply_matrix_b(m, mass, p, q, 2);
-    else
-        apply_matrix_b(m, mass, p, q, m->bs);
-}
-
-/* Inverse of the symmetric positive-definite b×b block a (b ≤ 3) into out;
- * zero if the block is singular or filtered. */
-static void invert_block(const double *a, int b, double *out)
-{
-    memset(out, 0, sizeof(double) * (size_t)b * b);
-    if (b == 2) {
-        double det = a[0] * a[3] - a[1] * a[2];
-        if (!(det > 0))
-            return;
-        out[0] = a[3] / det;
-        out[1] = -a[1] / det;
-        out[2] = -a[2] / det;
-        out[3] = a[0] / det;
-        return;
-    }
-    double c00 = a[4] * a[8] - a[5] * a[7], c01 = a[5] * a[6] - a[3] * a[8], c02 = a[3] * a[7] - a[4] * a[6];
-    double det = a[0] * c00 + a[1] * c01 + a[2] * c02;
-    if (!(det > 0))
-        return;
-    out[0] = c00 / det;
-    out[1] = (a[2] * a[7] - a[1] * a[8]) / det;
-    out[2] = (a[1] * a[5] - a[2] * a[4]) / det;
-    out[3] = c01 / det;
-    out[4] = (a[0] * a[8] - a[2] * a[6]) / det;
-    out[5] = (a[2] * a[3] - a[0] * a[5]) / det;
-    out[6] = c02 / det;
-    out[7] = (a[1] * a[6] - a[0] * a[7]) / det;
-    out[8] = (a[0] * a[4] - a[1] * a[3]) / det;
-}
-
-/* z = P r with the block-Jacobi preconditioner. */
-static void precondition(const bsr *m, const double *r, double *z)
+/* Make the stored matrix the filtered system S (M + A) S + (I - S), S
+ * zeroing prescribed components (mass 0): their rows and columns vanish and
+ * their diagonal entries become 1, so the product and the multigrid see one
+ * symmetric positive-definite matrix and keep those components at 0. */
+static void bake(bsr *m, const double *mass)
 {
     int b = m->bs;
-    for (size_t i = 0; i < m->nb; i++) {
-        const double *pi = m->pinv + i * (size_t)b * b, *ri = r + i * b;
-        for (int row = 0; row < b; row++) {
-            double acc = 0;
-            for (int c = 0; c < b; c++)
-                acc += pi[row * b + c] * ri[c];
-            z[i * b + row] = acc;
+    for (size_t i = 0; i < m->nb; i++)
+        for (size_t e = m->row[i]; e < m->row[i + 1]; e++) {
+            size_t j = m->col[e];
+            double *blk = m->val + e * (size_t)b * b;
+            for (int r = 0; r < b; r++)
+                for (int c = 0; c < b; c++) {
+                    bool pr = !(mass[i * b + r] > 0), pc = !(mass[j * b + c] > 0);
+                    if (pr || pc)
+                        blk[r * b + c] = i == j && r == c ? 1.0 : 0.0;
+                    else if (i == j && r == c)
+                        blk[r * b + c] += mass[i * b + r];
+                }
         }
-    }
 }
 
-static double dot(const double *a, const double *b, size_t n)
+static void apply_matrix(const bsr *m, const double *p, double *q)
 {
-    double s = 0;
-    for (size_t i = 0; i < n; i++)
-        s += a[i] * b[i];
-    return s;
+    psys__bsr_sym_mul(m->nb, m->bs, m->row, m->col, m->val, p, q);
+}
+
+/* Four interleaved partial sums, combined in a fixed order: a shorter
+ * dependency chain than one running sum, and the same bits on every run. */
+static double dot(const double *restrict a, const double *restrict b, size_t n)
+{
+    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    size_t i = 0;
+    for (; i + 4 <= n; i += 4) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1] * b[i + 1];
+        s2 += a[i + 2] * b[i + 2];
+        s3 += a[i + 3] * b[i + 3];
+    }
+    for (; i < n; i++)
+        s0 += a[i] * b[i];
+    return (s0 + s1) + (s2 + s3);
 }
 
 static psys_status implicit_step(psys_solver *s, double h, double *h_taken)
@@ -364,32 +324,25 @@ static psys_status implicit_step(psys_solver *s, double h, double *h_taken)
     s->ode.mass(s->ode.ctx, mass);
     if ((st = assemble(s, m, t, y0, h, kv)) != PSYS_OK)
         return st;
-    /* rhs = S h (f0 + h K v0), with f0 = m a0; Jacobi preconditioner from the diagonal. */
+    /* rhs = S h (f0 + h K v0), with f0 = m a0. */
     for (size_t k = 0; k < np; k++) {
         rhs[k] = mass[k] > 0 ? h * (mass[k] * ydot[np + k] + h * kv[k]) : 0.0;
         dv[k] = 0;
     }
-    for (size_t i = 0; i < m->nb; i++) {
-        long e = (long)m->row[i]; /* the diagonal block leads its row */
-        double blk[9];
-        for (int rr = 0; rr < b; rr++)
-            for (int c = 0; c < b; c++)
-                blk[rr * b + c] = (e >= 0 ? m->val[(size_t)e * b * b + rr * b + c] : 0.0)
-                                  + (rr == c ? mass[i * b + rr] : 0.0);
-        if (mass[i * b] > 0)
-            invert_block(blk, b, m->pinv + i * (size_t)b * b);
-        else
-            memset(m->pinv + i * (size_t)b * b, 0, sizeof(double) * (size_t)b * b);
-    }
+    bake(m, mass);
+    if (m->amg)
+        psys__amg_update(m->amg);
+    else if (!(m->amg = psys__amg_create(m->nb, b, m->row, m->col, m->val)))
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory building the implicit-euler preconditioner");
     /* Preconditioned conjugate gradient from Δv = 0 on the filtered system. */
     double bnorm = sqrt(dot(rhs, rhs, np));
     memcpy(r, rhs, np * sizeof(double));
-    precondition(m, r, z);
+    psys__amg_apply(m->amg, r, z);
     memcpy(p, z, np * sizeof(double));
     double rz = dot(r, z, np), res = bnorm;
     int it = 0;
     while (bnorm > 0 && res > s->cg_tol * bnorm && it < s->cg_maxit) {
-        apply_matrix(m, mass, p, q);
+        apply_matrix(m, p, q);
         double pq = dot(p, q, np);
         if (!(pq > 0))
             break; /* not positive definite along p: keep the best iterate */
@@ -400,7 +353,7 @@ static psys_status implicit_step(psys_solver *s, double h, double *h_taken)
         }
         res = sqrt(dot(r, r, np));
         it++;
-        precondition(m, r, z);
+        psys__amg_apply(m->amg, r, z);
         double rz_new = dot(r, z, np);
         double beta = rz_new / rz;
         rz = rz_new;

@@ -1,0 +1,35 @@
+/* Aggregation multigrid preconditioner for the symmetric positive-definite
+ * block-sparse systems of implicit-euler (src/solver_implicit.c).
+ *
+ * Matrices are stored as their upper triangle in block rows: row i holds
+ * blocks (i, j) with j >= i, the diagonal block first, columns ascending
+ * (bs×bs row-major blocks, bs = 2 or 3). */
+#ifndef PSYS_AMG_H
+#define PSYS_AMG_H
+
+#include "internal.h"
+
+#include <stddef.h>
+
+typedef struct psys__amg psys__amg;
+
+/* Build the hierarchy for the pattern and values of the fine matrix (row,
+ * col, val are borrowed: they must stay valid and keep this pattern until the
+ * next setup). Aggregates come from the strong couplings of val. Allocates;
+ * NULL when out of memory. */
+psys__amg *psys__amg_create(size_t nb, int bs, const size_t *row, const size_t *col, const double *val);
+void psys__amg_destroy(psys__amg *a);
+/* Recompute the coarse matrices and smoother data from the fine values
+ * (same pattern as at creation). No allocation. */
+void psys__amg_update(psys__amg *a);
+/* z = one symmetric V-cycle applied to r (an SPD approximation of A⁻¹ r):
+ * forward block Gauss–Seidel before, backward after the coarse correction,
+ * a dense Cholesky solve on the coarsest level. No allocation. */
+void psys__amg_apply(psys__amg *a, const double *r, double *z);
+/* y = A x for the upper-triangle block matrix (nb, bs, row, col, val). */
+void psys__bsr_sym_mul(size_t nb, int bs, const size_t *row, const size_t *col, const double *val, const double *x,
+                       double *y);
+/* Number of levels (1: no coarsening, a symmetric Gauss–Seidel sweep pair). */
+int psys__amg_levels(const psys__amg *a);
+
+#endif

@@ -1,0 +1,1 @@
+psys_c_test(test_amg vcycle_is_spd small_system_exact fewer_iterations)
