@@ -848,7 +848,7 @@ int psys_view_main(int argc, char **argv)
         simulate(a, real_dt, 0.6 / FPS_CAP);
 
         vw_overlay ov = {-1, -1, -1, false, {0, 0, 0}, {0, 0, 0}};
-        if (a->drag == DRAG_NONE || a->drag == DRAG_CONNECT) {
+        if (!shot && (a->drag == DRAG_NONE || a->drag == DRAG_CONNECT)) { /* screenshots: no hover marks */
             ov.hover_particle = pick_particle(a, a->mx, a->my);
             if (ov.hover_particle < 0 && a->drag == DRAG_NONE)
                 ov.hover_spring = pick_spring(a, a->mx, a->my);
