@@ -9,12 +9,22 @@
 #include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* Muscles (Miller's snakes and worms): spring k with a muscle has rest
  * length r(t) = rest[k]·(1 + amp·sin(omega·t + phase)) at evaluation time t.
  * Muscle arrays stay NULL until the first muscle exists, so a set without
  * muscles runs the plain loop on rest[] with no extra work. */
 #define NO_MUSCLE UINT32_MAX
+
+/* Spring loop blocking and threading (springs_apply). */
+#define SPRING_BLOCK 256          /* longest run: its force scratch (6 KiB) stays in L1 */
+#define SPRING_MAX_THREADS 64     /* more threads than this share 64 partitions */
+#define SPRING_PARALLEL_MIN 20000 /* fewer springs than this run on one thread */
 
 typedef struct springs {
     size_t n, cap;
@@ -26,7 +36,46 @@ typedef struct springs {
     size_t nm, mcap;  /* muscles, compact: spring, amplitude, omega, phase */
     uint32_t *midx;
     double *mamp, *momega, *mphase;
+    const psys_system *owner; /* for its thread count */
+    unsigned version;         /* changes with every change of the spring set */
+    /* The evaluation plan (springs_plan): springs regrouped into runs of
+     * equal index offset and consecutive first particles, so that the force
+     * loop reads and writes particles in contiguous blocks and vectorises.
+     * Spring indices users see stay those of the arrays above. */
+    bool plan_ok;
+    unsigned plan_version;
+    size_t nruns;
+    uint32_t *run_lo, *run_off, *run_len; /* run r: springs (lo + j, lo + off + j), j < len */
+    size_t *run_k;                        /* first plan slot of run r */
+    double *pks, *pkd, *prest;            /* parameters in plan order */
+    size_t *pos;                          /* plan slot of spring k */
+    /* Thread partition (springs_partition): thread t owns the particles
+     * [P_t, P_t+1), P_t = ceil(t·np/T), and walks runs [rlo[t], rhi[t]),
+     * every run touching a particle it owns. Recomputed when the plan, the
+     * particle count or T changes; no allocation. */
+    unsigned part_version;
+    size_t part_np;
+    int part_t;   /* T of the cached partition, 0 = none */
+    bool part_ok; /* false: the ranges overlap too much to pay, run serially */
+    size_t rlo[SPRING_MAX_THREADS], rhi[SPRING_MAX_THREADS];
 } springs;
+
+static void plan_free(springs *s)
+{
+    free(s->run_lo);
+    free(s->run_off);
+    free(s->run_len);
+    free(s->run_k);
+    free(s->pks);
+    free(s->pkd);
+    free(s->prest);
+    free(s->pos);
+    s->run_lo = s->run_off = s->run_len = NULL;
+    s->run_k = s->pos = NULL;
+    s->pks = s->pkd = s->prest = NULL;
+    s->nruns = 0;
+    s->plan_ok = false;
+}
 
 static void springs_destroy(void *data)
 {
@@ -44,10 +93,17 @@ static void springs_destroy(void *data)
     free(s->mamp);
     free(s->momega);
     free(s->mphase);
+    plan_free(s);
     free(s);
 }
 
-void *psys__springs_create(void) { return calloc(1, sizeof(springs)); }
+void *psys__springs_create(const psys_system *owner)
+{
+    springs *s = calloc(1, sizeof(springs));
+    if (s)
+        s->owner = owner;
+    return s;
+}
 size_t psys__springs_count(const void *set) { return ((const springs *)set)->n; }
 
 psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double kd, double rest)
@@ -84,6 +140,7 @@ psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double k
     s->kd[s->n] = kd;
     s->rest[s->n] = rest;
     s->n++;
+    s->version++;
     return PSYS_OK;
 }
 
@@ -147,6 +204,7 @@ psys_status psys__springs_set_muscle(void *set, size_t k, double amplitude, doub
         s->mslot[k] = NO_MUSCLE;
         s->rest_t[k] = s->rest[k];
         s->nm--;
+        s->version++;
         return PSYS_OK;
     }
     if (m == NO_MUSCLE) {
@@ -171,6 +229,7 @@ psys_status psys__springs_set_muscle(void *set, size_t k, double amplitude, doub
     s->mamp[m] = amplitude;
     s->momega[m] = omega;
     s->mphase[m] = phase;
+    s->version++;
     return PSYS_OK;
 }
 
@@ -202,28 +261,109 @@ void psys__springs_truncate(void *set, size_t n)
             psys__springs_set_muscle(s, k, 0, 0, 0); /* removal never allocates */
     if (n < s->n)
         s->n = n;
+    s->version++;
 }
 
-/* d is a compile-time constant at each call site, so the inner loops unroll. */
-static inline void springs_apply_d(const springs *s, const psys_force_eval *e, const double *restrict rest,
-                                   double *restrict f, const int d)
+/* ---- the force loop ----
+ * springs_plan regroups the springs into runs: springs (lo + j, lo + off + j)
+ * for j < len, with lo < lo + off, ordered by block of 256 first particles,
+ * then offset, then first particle. A cloth, rope or lattice built row by row
+ * falls into runs as long as its rows (one per kind of neighbour), so the
+ * loop over a run reads positions and velocities of both ends and writes
+ * their forces as contiguous blocks: it vectorises, and only one array of
+ * parameters per quantity (ks, kd, rest in plan order) streams by.
+ * Each particle's force receives its springs' contributions in plan order
+ * (run by run; in a run the first ends, then the second ends), whatever the
+ * thread count. A spring with a > b is the same spring seen from b: l and
+ * l̇ change sign, l·l̇ and |l| do not, so its force is the same to the bit. */
+
+/* Forces of run springs j < len into F (dim × len, particle-major):
+ *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
+ * A spring of zero length has no direction and exerts no force. */
+static inline void run_forces_d(const double *restrict xa, const double *restrict xb, const double *restrict va,
+                                const double *restrict vb, const double *restrict ks, const double *restrict kd,
+                                const double *restrict rest, size_t len, double *restrict F, const int d)
 {
-    const double *restrict x = e->x, *restrict v = e->v;
-    const uint32_t *restrict ia_ = s->a, *restrict ib_ = s->b;
-    const double *restrict ks = s->ks, *restrict kd = s->kd;
+    for (size_t j = 0; j < len; j++) {
+        double l0 = xa[j * d] - xb[j * d], l1 = xa[j * d + 1] - xb[j * d + 1];
+        double d0 = va[j * d] - vb[j * d], d1 = va[j * d + 1] - vb[j * d + 1];
+        double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1, l2 = 0;
+        if (d == 3) {
+            l2 = xa[j * d + 2] - xb[j * d + 2];
+            double d2 = va[j * d + 2] - vb[j * d + 2];
+            len2 = len2 + l2 * l2;
+            dot = dot + d2 * l2;
+        }
+        double L = sqrt(len2), inv = 1.0 / L;
+        double mag = (ks[j] * (L - rest[j]) + kd[j] * dot * inv) * inv;
+        mag = len2 == 0 ? 0.0 : mag;
+        F[j * d] = mag * l0;
+        F[j * d + 1] = mag * l1;
+        if (d == 3)
+            F[j * d + 2] = mag * l2;
+    }
+}
+
+/* Runs r0..r1-1 into f; with `owned`, only the ends in particles [P, Q). */
+static inline void springs_runs_d(const springs *s, const psys_force_eval *e, double *restrict f, size_t r0,
+                                  size_t r1, size_t P, size_t Q, const int d, const bool owned)
+{
+    double F[3 * SPRING_BLOCK];
+    const double *x = e->x, *v = e->v;
+    for (size_t r = r0; r < r1; r++) {
+        const size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r], k = s->run_k[r];
+        size_t a0 = 0, a1 = len, b0 = 0, b1 = len; /* j ranges written at the lo and hi ends */
+        if (owned) {
+            a0 = P > lo ? P - lo : 0;
+            a1 = Q < lo ? 0 : Q - lo < len ? Q - lo : len;
+            b0 = P > hi ? P - hi : 0;
+            b1 = Q < hi ? 0 : Q - hi < len ? Q - hi : len;
+            if (a0 >= a1 && b0 >= b1)
+                continue;
+        }
+        run_forces_d(x + lo * d, x + hi * d, v + lo * d, v + hi * d, s->pks + k, s->pkd + k, s->prest + k, len, F, d);
+        double *restrict fa = f + lo * d, *restrict fb = f + hi * d;
+        for (size_t i = a0 * d; i < a1 * d; i++)
+            fa[i] -= F[i];
+        for (size_t i = b0 * d; i < b1 * d; i++)
+            fb[i] += F[i];
+    }
+}
+
+static void springs_runs(const springs *s, const psys_force_eval *e, double *f, size_t r0, size_t r1, size_t P,
+                         size_t Q, bool owned)
+{
+    if (e->dim == 2) {
+        if (owned)
+            springs_runs_d(s, e, f, r0, r1, P, Q, 2, true);
+        else
+            springs_runs_d(s, e, f, r0, r1, 0, 0, 2, false);
+    } else {
+        if (owned)
+            springs_runs_d(s, e, f, r0, r1, P, Q, 3, true);
+        else
+            springs_runs_d(s, e, f, r0, r1, 0, 0, 3, false);
+    }
+}
+
+/* The plain loop in spring order: only when the plan could not be built
+ * (out of memory) in a call that cannot report it. */
+static void springs_plain(const springs *s, const psys_force_eval *e, const double *rest, double *f)
+{
+    const int d = e->dim;
     for (size_t k = 0; k < s->n; k++) {
-        size_t ia = (size_t)ia_[k] * d, ib = (size_t)ib_[k] * d;
+        size_t ia = (size_t)s->a[k] * d, ib = (size_t)s->b[k] * d;
         double l[3], ld[3], len2 = 0, dot = 0;
         for (int c = 0; c < d; c++) {
-            l[c] = x[ia + c] - x[ib + c];
-            ld[c] = v[ia + c] - v[ib + c];
+            l[c] = e->x[ia + c] - e->x[ib + c];
+            ld[c] = e->v[ia + c] - e->v[ib + c];
             len2 += l[c] * l[c];
             dot += ld[c] * l[c];
         }
         if (len2 == 0)
             continue;
         double len = sqrt(len2), inv = 1.0 / len;
-        double mag = (ks[k] * (len - rest[k]) + kd[k] * dot * inv) * inv;
+        double mag = (s->ks[k] * (len - rest[k]) + s->kd[k] * dot * inv) * inv;
         for (int c = 0; c < d; c++) {
             double fc = mag * l[c];
             f[ia + c] -= fc;
@@ -232,13 +372,166 @@ static inline void springs_apply_d(const springs *s, const psys_force_eval *e, c
     }
 }
 
+typedef struct plan_item {
+    uint64_t key; /* block of lo, offset, lo within the block */
+    size_t k;
+} plan_item;
+
+static int plan_cmp(const void *p, const void *q)
+{
+    const plan_item *a = p, *b = q;
+    if (a->key != b->key)
+        return a->key < b->key ? -1 : 1;
+    return (a->k > b->k) - (a->k < b->k);
+}
+
+/* Build the plan for the current spring set (allocates; called before a
+ * step through psys__springs_prepare, so failure is an error status). */
+static psys_status springs_plan(springs *s)
+{
+    if (s->plan_ok && s->plan_version == s->version)
+        return PSYS_OK;
+    const size_t S = s->n, cap = S ? S : 1;
+    plan_item *it = psys__calloc(cap, sizeof *it);
+    springs p = {0};
+    p.run_lo = psys__calloc(cap, sizeof *p.run_lo);
+    p.run_off = psys__calloc(cap, sizeof *p.run_off);
+    p.run_len = psys__calloc(cap, sizeof *p.run_len);
+    p.run_k = psys__calloc(cap, sizeof *p.run_k);
+    p.pks = psys__calloc(cap, sizeof *p.pks);
+    p.pkd = psys__calloc(cap, sizeof *p.pkd);
+    p.prest = psys__calloc(cap, sizeof *p.prest);
+    p.pos = psys__calloc(cap, sizeof *p.pos);
+    if (!it || !p.run_lo || !p.run_off || !p.run_len || !p.run_k || !p.pks || !p.pkd || !p.prest || !p.pos) {
+        free(it);
+        plan_free(&p);
+        return PSYS_ERR_NOMEM;
+    }
+    for (size_t k = 0; k < S; k++) {
+        uint64_t a = s->a[k], b = s->b[k], lo = a < b ? a : b, off = a < b ? b - a : a - b;
+        it[k].key = (lo >> 8) << 40 | off << 8 | (lo & 255);
+        it[k].k = k;
+    }
+    qsort(it, S, sizeof *it, plan_cmp);
+    size_t nr = 0;
+    for (size_t i = 0; i < S; i++) {
+        size_t k = it[i].k;
+        uint32_t a = s->a[k], b = s->b[k], lo = a < b ? a : b, off = a < b ? b - a : a - b;
+        if (nr == 0 || off != p.run_off[nr - 1] || lo != p.run_lo[nr - 1] + p.run_len[nr - 1]
+            || p.run_len[nr - 1] == SPRING_BLOCK) {
+            p.run_lo[nr] = lo;
+            p.run_off[nr] = off;
+            p.run_len[nr] = 0;
+            p.run_k[nr] = i;
+            nr++;
+        }
+        p.run_len[nr - 1]++;
+        p.pks[i] = s->ks[k];
+        p.pkd[i] = s->kd[k];
+        p.prest[i] = s->rest[k];
+        p.pos[k] = i;
+    }
+    free(it);
+    plan_free(s);
+    s->run_lo = p.run_lo;
+    s->run_off = p.run_off;
+    s->run_len = p.run_len;
+    s->run_k = p.run_k;
+    s->pks = p.pks;
+    s->pkd = p.pkd;
+    s->prest = p.prest;
+    s->pos = p.pos;
+    s->nruns = nr;
+    s->plan_ok = true;
+    s->plan_version = s->version;
+    s->part_t = 0;
+    return PSYS_OK;
+}
+
+psys_status psys__springs_prepare(void *set) { return springs_plan(set); }
+
+/* First particle of thread t's share of np particles among T. */
+static size_t part_first(size_t np, int T, int t) { return (size_t)(((uint64_t)t * np + (uint64_t)T - 1) / (uint64_t)T); }
+
+/* Thread owning particle p (p >= part_first(np, T, t) exactly when t <= this). */
+static int part_owner(size_t p, size_t np, int T) { return (int)((uint64_t)p * (uint64_t)T / (uint64_t)np); }
+
+/* Thread t walks the runs rlo[t]..rhi[t]-1: all the runs with an end in its
+ * share of the particles. Each particle's force is written by its owner
+ * only, with its contributions in plan order: results do not depend on T. */
+static void springs_partition(springs *s, size_t np, int T)
+{
+    if (s->part_t == T && s->part_version == s->plan_version && s->part_np == np)
+        return;
+    for (int t = 0; t < T; t++) {
+        s->rlo[t] = SIZE_MAX;
+        s->rhi[t] = 0;
+    }
+    for (size_t r = 0; r < s->nruns; r++) {
+        size_t ends[2] = {s->run_lo[r], (size_t)s->run_lo[r] + s->run_off[r]};
+        for (int z = 0; z < 2; z++) {
+            int t0 = part_owner(ends[z], np, T), t1 = part_owner(ends[z] + s->run_len[r] - 1, np, T);
+            for (int t = t0; t <= t1; t++) {
+                if (r < s->rlo[t])
+                    s->rlo[t] = r;
+                if (r + 1 > s->rhi[t])
+                    s->rhi[t] = r + 1;
+            }
+        }
+    }
+    size_t walked = 0;
+    for (int t = 0; t < T; t++) {
+        if (s->rlo[t] > s->rhi[t])
+            s->rlo[t] = s->rhi[t] = 0;
+        walked += s->rhi[t] - s->rlo[t];
+    }
+    s->part_ok = walked <= s->nruns + s->nruns / 4; /* overlaps cost at most a quarter more */
+    s->part_t = T;
+    s->part_version = s->plan_version;
+    s->part_np = np;
+}
+
+static int springs_threads(const springs *s)
+{
+#ifdef _OPENMP
+    if (s->n < SPRING_PARALLEL_MIN)
+        return 1;
+    int T = s->owner && s->owner->threads > 0 ? s->owner->threads : omp_get_max_threads();
+    return T < 1 ? 1 : T > SPRING_MAX_THREADS ? SPRING_MAX_THREADS : T;
+#else
+    (void)s;
+    return 1;
+#endif
+}
+
 static void springs_apply(void *data, const psys_force_eval *e, double *f)
 {
-    const double *rest = rest_at(data, e->t);
-    if (e->dim == 2)
-        springs_apply_d(data, e, rest, f, 2);
-    else
-        springs_apply_d(data, e, rest, f, 3);
+    springs *s = data;
+    const double *rest = rest_at(s, e->t);
+    if (springs_plan(s) != PSYS_OK) {
+        springs_plain(s, e, rest, f);
+        return;
+    }
+    for (size_t m = 0; m < s->nm; m++)
+        s->prest[s->pos[s->midx[m]]] = rest[s->midx[m]];
+    int T = springs_threads(s);
+    if (T > 1 && e->n > 0) {
+        springs_partition(s, e->n, T);
+        if (!s->part_ok)
+            T = 1;
+    }
+    if (T <= 1) {
+        springs_runs(s, e, f, 0, s->nruns, 0, 0, false);
+        return;
+    }
+#ifdef _OPENMP
+#pragma omp parallel num_threads(T)
+    {
+        int nth = omp_get_num_threads(), me = omp_get_thread_num();
+        for (int t = me; t < T; t += nth)
+            springs_runs(s, e, f, s->rlo[t], s->rhi[t], part_first(e->n, T, t), part_first(e->n, T, t + 1), true);
+    }
+#endif
 }
 
 static double springs_energy(void *data, const psys_force_eval *e)

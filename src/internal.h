@@ -129,8 +129,8 @@ struct psys_jacobian {
 };
 
 /* ---- spring set internals (force_spring.c) ---- */
-/** Create an empty spring set. */
-void *psys__springs_create(void);
+/** Create an empty spring set of the system owner (whose thread count it uses). */
+void *psys__springs_create(const psys_system *owner);
 /** Append one spring. */
 psys_status psys__springs_add(void *set, size_t a, size_t b, double ks, double kd, double rest);
 /** Number of springs. */
@@ -145,6 +145,9 @@ bool psys__springs_muscle(const void *set, size_t k, double *amplitude, double *
 double psys__springs_rest_at(const void *set, size_t k, double t);
 /** Drop springs n.. (and their muscles); never allocates. */
 void psys__springs_truncate(void *set, size_t n);
+/** Build the spring set's evaluation plan if the set changed (allocates;
+ *  PSYS_ERR_NOMEM on failure). Called before evaluating forces. */
+psys_status psys__springs_prepare(void *set);
 
 /* ---- structures (structures.c) ---- */
 /** Add a particle without searching for a duplicate id: the caller has made

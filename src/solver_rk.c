@@ -3,6 +3,7 @@
 #include "solver.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <string.h>
 
 enum { Y0, YTMP, Y1, K0 }; /* scratch vector slots; stage k_i is buf[K0 + i] */
@@ -81,12 +82,71 @@ static psys_status rk_stages(psys_solver *s, const psys__tableau *tab, double t,
     return PSYS_OK;
 }
 
+/* True when stage i uses only stage i-1 (a[i][j] != 0 exactly for j = i-1):
+ * euler, midpoint and rk4. */
+static bool rk_is_chain(const psys__tableau *tab)
+{
+    for (int i = 1; i < tab->stages; i++)
+        for (int j = 0; j < i; j++)
+            if ((tab->a[i][j] != 0) != (j == i - 1))
+                return false;
+    return true;
+}
+
+/* rk_stages for chain tableaux with one stage vector and one pass over
+ * memory per stage: after stage i, the same pass forms the next stage's
+ * state and adds b_i k_i into y1. Each element sees the same operations in
+ * the same order as combine() (acc = 0 + w k, acc += w k, ..., y0 + h acc;
+ * or y0 + h (w k) for a single weight), so the bits are those of rk_stages. */
+static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0,
+                                   double *y1)
+{
+    const size_t n = s->n;
+    double *restrict k = s->buf[K0], *restrict yt = s->buf[YTMP], *restrict acc = y1;
+    const double *restrict base = y0;
+    int nw = 0, last = -1;
+    for (int j = 0; j < tab->stages; j++)
+        if (tab->b[j] != 0) {
+            nw++;
+            last = j;
+        }
+    int seen = 0;
+    for (int i = 0; i < tab->stages; i++) {
+        psys_status st = psys__solver_eval(s, t + tab->c[i] * h, i == 0 ? y0 : yt, k);
+        if (st != PSYS_OK)
+            return st;
+        const bool next = i + 1 < tab->stages;
+        const double an = next ? tab->a[i + 1][i] : 0, w = tab->b[i];
+        const int role = w == 0 ? 0 : nw == 1 ? 1 : seen == 0 ? 2 : i == last ? 4 : 3;
+        if (w != 0)
+            seen++;
+        /* role 0: no weight; 1: the only weight; 2: first; 3: middle; 4: last */
+        if (next) {
+            switch (role) {
+            case 0: for (size_t j = 0; j < n; j++) yt[j] = base[j] + h * (an * k[j]); break;
+            case 1: for (size_t j = 0; j < n; j++) { acc[j] = base[j] + h * (w * k[j]); yt[j] = base[j] + h * (an * k[j]); } break;
+            case 2: for (size_t j = 0; j < n; j++) { acc[j] = 0.0 + w * k[j]; yt[j] = base[j] + h * (an * k[j]); } break;
+            default: for (size_t j = 0; j < n; j++) { acc[j] = acc[j] + w * k[j]; yt[j] = base[j] + h * (an * k[j]); } break;
+            }
+        } else {
+            switch (role) {
+            case 0: if (nw == 0) memcpy(acc, base, n * sizeof(double)); break;
+            case 1: for (size_t j = 0; j < n; j++) acc[j] = base[j] + h * (w * k[j]); break;
+            case 2: for (size_t j = 0; j < n; j++) acc[j] = base[j] + h * (0.0 + w * k[j]); break;
+            default: for (size_t j = 0; j < n; j++) acc[j] = base[j] + h * (acc[j] + w * k[j]); break;
+            }
+        }
+    }
+    return PSYS_OK;
+}
+
 static psys_status rk_fixed_step(psys_solver *s, double h, double *h_taken)
 {
     double *y0 = s->buf[Y0], *y1 = s->buf[Y1];
     double t = s->ode.get_time(s->ode.ctx);
     s->ode.get_state(s->ode.ctx, y0);
-    psys_status st = rk_stages(s, s->cls->tab, t, h, y0, y1);
+    psys_status st = rk_is_chain(s->cls->tab) ? rk_chain_stages(s, s->cls->tab, t, h, y0, y1)
+                                              : rk_stages(s, s->cls->tab, t, h, y0, y1);
     if (st == PSYS_OK)
         st = psys__solver_commit(s, y1, t + h);
     *h_taken = h;

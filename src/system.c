@@ -330,7 +330,7 @@ psys_status psys_system_add_spring(psys_system *s, size_t a, size_t b, double ks
                               "particles %zu and %zu are too far apart for a spring (their distance is not finite)", a, b);
     }
     if (!s->springs) {
-        void *set = psys__springs_create();
+        void *set = psys__springs_create(s);
         if (!set)
             return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory adding a spring");
         if (psys_system_add_force(s, &psys_spring_class, set) != PSYS_OK)
@@ -425,6 +425,8 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     size_t d = (size_t)s->dim, nd = s->n * d;
     psys_force_eval e;
     psys__sys_eval(s, t, y, y + nd, &e);
+    if (s->springs && psys__springs_prepare(s->springs) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     accumulate(s, &e, s->f);
     memcpy(ydot, y + nd, nd * sizeof(double));
     double *a = ydot + nd;
@@ -488,6 +490,8 @@ psys_status psys_system_compute_forces(psys_system *s, double *f)
 {
     psys_force_eval e;
     psys__sys_eval(s, s->t, s->x, s->v, &e);
+    if (s->springs && psys__springs_prepare(s->springs) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     accumulate(s, &e, f);
     return PSYS_OK;
 }

@@ -1,10 +1,17 @@
-/* psys bench: built-in benchmark cases printing one JSON line each.
- * cloth-N: the N×N sheet of ../shared/peers/ref_cloth.c (2 m × 2 m, 1 kg,
- * structural + shear + bend springs, two corners pinned, gravity, drag),
- * stepped with rk4 at dt = 1/sqrt(17.6 ks N²). */
+/* psys bench: built-in benchmark cases printing one JSON line each
+ * (bench/README.md explains the cases, the byte counts and the floor).
+ *   cloth-N      the N×N sheet of ../shared/peers/ref_cloth.c (2 m × 2 m, 1 kg,
+ *                structural + shear + bend springs, two corners pinned,
+ *                gravity, drag), N = 100, 256, 1024, dt = 1/sqrt(17.6 ks N²)
+ *   rope-1000000 a rope of 10⁶ particles (structural springs), top end pinned
+ *   lj-melt      the LAMMPS LJ melt, 32,000 atoms, grid pair force, verlet
+ *   nbody-4096   4096 bodies, softened gravity, direct pair sums, verlet
+ * Every line carries the STREAM-triad bandwidth measured at start and the
+ * case's floor: the bytes that must move per particle-step over it. */
 #include "cli.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -14,6 +21,73 @@ static double now_seconds(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* STREAM triad a = b + s·c over three arrays of 2^25 doubles (768 MiB in
+ * all, about three times the last-level cache), one thread, best of 5, counted as
+ * STREAM does: 24 bytes per element (write-allocate not counted). 0 when
+ * the memory cannot be had. */
+static double triad_gbs(void)
+{
+    const size_t n = (size_t)1 << 25;
+    double *a = malloc(n * sizeof *a), *b = malloc(n * sizeof *b), *c = malloc(n * sizeof *c);
+    double best = 0;
+    if (a && b && c) {
+        for (size_t i = 0; i < n; i++) {
+            a[i] = 0;
+            b[i] = 1.0;
+            c[i] = 2.0;
+        }
+        for (int r = 0; r < 5; r++) {
+            double t0 = now_seconds(), s = 1.0 + r * 1e-3;
+            for (size_t i = 0; i < n; i++)
+                a[i] = b[i] + s * c[i];
+            double el = now_seconds() - t0;
+            double gbs = 24.0 * (double)n / el * 1e-9;
+            if (gbs > best)
+                best = gbs;
+        }
+        volatile double sink = a[n / 2];
+        (void)sink;
+    }
+    free(a);
+    free(b);
+    free(c);
+    return best;
+}
+
+/* Bytes that must move per particle-step (DRAM traffic of an ideal fused
+ * integrator when nothing stays in cache, write-allocate counted; d = 3):
+ *   rk4:    4 stages × (read x0,v0 48 + read k 48 + write k 48 + its
+ *           write-allocate 48) + 4 × springs + final combination 336
+ *           (read y0 and 4 k = 240, write y1 48 + 48) = 4·192 + 336 + 4·32·S/n
+ *   verlet: 2 evaluations × (read x,v 48 + write a 24 + 24) + the update
+ *           passes (read x,v,a 72, write x,v 48 + 48; then read v,a 48,
+ *           write v 24 + 24) + 2 × springs = 2·96 + 264 + 2·32·S/n
+ *   other fixed-step solvers: (evaluations) × (96 + 32·S/n) + 96 + 96
+ * A spring is 32 bytes (two 4-byte indices, ks, kd, rest). Pair forces
+ * (lj-melt, nbody) count the particle state only: their floor is far below
+ * what their arithmetic costs. */
+static double floor_bytes(const char *integrator, double springs_per_particle)
+{
+    double sp = 32.0 * springs_per_particle;
+    if (strcmp(integrator, "rk4") == 0)
+        return 4 * 192.0 + 336.0 + 4 * sp;
+    if (strcmp(integrator, "verlet") == 0)
+        return 2 * 96.0 + 264.0 + 2 * sp;
+    int evals = strcmp(integrator, "midpoint") == 0 ? 2 : 1;
+    return evals * (96.0 + sp) + 192.0;
+}
+
+static int evals_per_step(const char *integrator)
+{
+    return strcmp(integrator, "rk4") == 0 ? 4 : strcmp(integrator, "verlet") == 0 || strcmp(integrator, "midpoint") == 0 ? 2 : 1;
 }
 
 static psys_system *build_cloth(int n)
@@ -51,94 +125,260 @@ fail:
     return NULL;
 }
 
-static int cmp_double(const void *a, const void *b)
+/* A rope of n particles, 10 m long, 1 kg, hanging from particle 0 and
+ * released horizontally; ks = 100 N/m per segment. dt = 1/sqrt(4 ks/m). */
+static psys_system *build_rope(size_t n, double *dt)
 {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
+    psys_system *sys = psys_system_create(3, NULL);
+    if (!sys)
+        return NULL;
+    const double len = 10.0, m = 1.0 / (double)n, ks = 100.0 * (double)n / 1000.0, kd = 0.01 * sqrt(ks * m);
+    for (size_t i = 0; i < n; i++) {
+        double x[3] = {len * (double)i / (double)(n - 1), 0, 0};
+        if (psys_system_add_particle(sys, x, NULL, m, NULL, NULL) != PSYS_OK)
+            goto fail;
+    }
+    for (size_t i = 0; i + 1 < n; i++)
+        if (psys_system_add_spring(sys, i, i + 1, ks, kd, -1) != PSYS_OK)
+            goto fail;
+    double g[3] = {0, -9.81, 0};
+    if (psys_system_set_fixed(sys, 0, true) != PSYS_OK || psys_system_add_gravity(sys, g) != PSYS_OK)
+        goto fail;
+    *dt = 1.0 / sqrt(4.0 * ks / m);
+    return sys;
+fail:
+    psys_system_destroy(sys);
+    return NULL;
 }
 
-static int bench_cloth(int n, const char *integrator, int reps, double seconds)
+static uint64_t rng_state;
+static double urand(void)
 {
-    psys_system *sys = build_cloth(n);
+    rng_state = rng_state * 6364136223846793005ull + 1442695040888963407ull;
+    return (double)(rng_state >> 11) * 0x1.0p-53;
+}
+
+/* The LAMMPS LJ melt (../shared/peers/in.lj; bench/pair_bench.c): fcc at
+ * density 0.8442, cells³ unit cells, T = 1.44, LJ cut at 2.5, skin 0.3. */
+static psys_system *build_lj(int cells)
+{
+    const double rho = 0.8442, a = cbrt(4.0 / rho), L = a * cells, T = 1.44;
+    static const double basis[4][3] = {{0, 0, 0}, {0.5, 0.5, 0}, {0.5, 0, 0.5}, {0, 0.5, 0.5}};
+    size_t n = 4 * (size_t)cells * cells * cells;
+    psys_system *sys = psys_system_create(3, NULL);
+    double *v = malloc(n * 3 * sizeof(double)), p[3] = {0, 0, 0}, ke = 0;
+    if (!sys || !v)
+        goto fail;
+    rng_state = 87287;
+    for (size_t i = 0; i < n * 3; i++) {
+        v[i] = urand() - 0.5;
+        p[i % 3] += v[i];
+    }
+    for (size_t i = 0; i < n * 3; i++) {
+        v[i] -= p[i % 3] / (double)n;
+        ke += 0.5 * v[i] * v[i];
+    }
+    double scale = sqrt(T * 1.5 * (double)(n - 1) / ke);
+    size_t i = 0;
+    for (int cz = 0; cz < cells; cz++)
+        for (int cy = 0; cy < cells; cy++)
+            for (int cx = 0; cx < cells; cx++)
+                for (int b = 0; b < 4; b++, i++) {
+                    double x[3] = {a * (cx + basis[b][0]), a * (cy + basis[b][1]), a * (cz + basis[b][2])};
+                    double vi[3] = {v[i * 3] * scale, v[i * 3 + 1] * scale, v[i * 3 + 2] * scale};
+                    if (psys_system_add_particle(sys, x, vi, 1.0, NULL, NULL) != PSYS_OK)
+                        goto fail;
+                }
+    free(v);
+    v = NULL;
+    double lo[3] = {0, 0, 0}, hi[3] = {L, L, L};
+    bool per[3] = {true, true, true};
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.epsilon = 1;
+    def.sigma = 1;
+    def.cutoff = 2.5;
+    def.skin = 0.3;
+    def.method = PSYS_PAIR_GRID;
+    if (psys_system_set_box(sys, lo, hi, per) != PSYS_OK || psys_system_add_pair(sys, &def, NULL) != PSYS_OK)
+        goto fail;
+    return sys;
+fail:
+    free(v);
+    psys_system_destroy(sys);
+    return NULL;
+}
+
+/* n bodies of total mass 1 uniformly in a unit ball, G = 1, softening 0.01. */
+static psys_system *build_nbody(size_t n)
+{
+    psys_system *sys = psys_system_create(3, NULL);
+    if (!sys)
+        return NULL;
+    rng_state = 12345;
+    for (size_t i = 0; i < n;) {
+        double x[3] = {2 * urand() - 1, 2 * urand() - 1, 2 * urand() - 1};
+        if (x[0] * x[0] + x[1] * x[1] + x[2] * x[2] > 1)
+            continue;
+        if (psys_system_add_particle(sys, x, NULL, 1.0 / (double)n, NULL, NULL) != PSYS_OK)
+            goto fail;
+        i++;
+    }
+    psys_pair_def def = psys_pair_def_default();
+    def.softening = 0.01;
+    def.method = PSYS_PAIR_DIRECT;
+    if (psys_system_add_pair(sys, &def, NULL) != PSYS_OK)
+        goto fail;
+    return sys;
+fail:
+    psys_system_destroy(sys);
+    return NULL;
+}
+
+typedef struct bench_opts {
+    const char *integrator; /* NULL: the case's own */
+    int reps, threads;
+    long long steps; /* > 0: steps per repetition, no calibration */
+    double seconds, gbs;
+} bench_opts;
+
+/* Time steps of sys with integrator at dt; print one JSON line. */
+static int bench_system(const char *name, psys_system *sys, const char *integrator, double dt, const bench_opts *o)
+{
     if (!sys) {
-        cli_error("bench: out of memory building a %dx%d cloth", n, n);
+        cli_error("bench: %s: out of memory building the system", name);
         return EXIT_RUN_FAILED;
     }
     psys_ode ode = psys_system_ode(sys);
     psys_error err;
-    psys_solver *solver = psys_solver_create(integrator, &ode, &err);
-    if (!solver) {
-        cli_error("bench: %s", err.message);
+    psys_solver *solver = NULL;
+    int rc = EXIT_OK;
+    if (psys_system_set_threads(sys, o->threads) != PSYS_OK || !(solver = psys_solver_create(integrator, &ode, &err))) {
+        cli_error("bench: %s: %s", name, solver ? psys_system_last_error(sys) : err.message);
         psys_system_destroy(sys);
         return EXIT_RUN_FAILED;
     }
-    const double dt = 1.0 / sqrt(17.6 * 100.0 * (double)n * n);
-    /* Calibrate the batch so one repetition takes about `seconds`. */
-    long long batch = 1;
-    for (;;) {
+    /* One untimed step builds the spring plan and the pair lists; then
+     * calibrate the batch so one repetition takes about `seconds`. */
+    if (psys_system_advance(sys, solver, dt, NULL) != PSYS_OK)
+        goto failed;
+    long long batch = o->steps > 0 ? o->steps : 1;
+    while (o->steps <= 0) {
         double t0 = now_seconds();
         for (long long k = 0; k < batch; k++)
-            psys_solver_step(solver, dt, NULL);
+            if (psys_system_advance(sys, solver, dt, NULL) != PSYS_OK)
+                goto failed;
         double el = now_seconds() - t0;
         if (el > 0.05 || batch > (1LL << 40)) {
-            batch = (long long)fmax(1.0, batch * seconds / el);
+            batch = (long long)fmax(1.0, batch * o->seconds / el);
             break;
         }
         batch *= 2;
     }
     double per[64];
-    if (reps > 64)
-        reps = 64;
+    int reps = o->reps > 64 ? 64 : o->reps;
     for (int r = 0; r < reps; r++) {
         double t0 = now_seconds();
         for (long long k = 0; k < batch; k++)
-            if (psys_solver_step(solver, dt, NULL) != PSYS_OK) {
-                cli_error("bench: cloth-%d: %s", n, psys_solver_last_error(solver));
-                psys_solver_destroy(solver);
-                psys_system_destroy(sys);
-                return EXIT_RUN_FAILED;
-            }
+            if (psys_system_advance(sys, solver, dt, NULL) != PSYS_OK)
+                goto failed;
         per[r] = (now_seconds() - t0) / (double)batch;
     }
     qsort(per, (size_t)reps, sizeof per[0], cmp_double);
-    double med = per[reps / 2];
-    size_t np = psys_system_count(sys), ns = psys_system_spring_count(sys);
-    int evals = strcmp(integrator, "rk4") == 0 ? 4 : strcmp(integrator, "verlet") == 0 ? 2 : 1;
-    printf("{\"case\":\"cloth-%d\",\"integrator\":\"%s\",\"particles\":%zu,\"springs\":%zu,\"steps_per_rep\":%lld,"
-           "\"reps\":%d,\"threads\":1,\"ns_per_particle_step\":%.2f,\"ns_per_spring_eval\":%.3f,"
-           "\"min_ns_per_particle_step\":%.2f,\"max_ns_per_particle_step\":%.2f}\n",
-           n, integrator, np, ns, batch, reps, med * 1e9 / np, med * 1e9 / ((double)ns * evals),
-           per[0] * 1e9 / np, per[reps - 1] * 1e9 / np);
+    {
+        double med = per[reps / 2];
+        size_t np = psys_system_count(sys), ns = psys_system_spring_count(sys);
+        double nsp = med * 1e9 / (double)np, fb = floor_bytes(integrator, (double)ns / (double)np);
+        printf("{\"case\":\"%s\",\"integrator\":\"%s\",\"n\":%zu,\"particles\":%zu,\"springs\":%zu,\"steps\":%lld,"
+               "\"steps_per_rep\":%lld,\"reps\":%d,\"threads\":%d,\"ns_per_particle_step\":%.2f,",
+               name, integrator, np, np, ns, batch * reps, batch, reps, o->threads, nsp);
+        if (ns)
+            printf("\"ns_per_spring_eval\":%.3f,", med * 1e9 / ((double)ns * evals_per_step(integrator)));
+        else
+            printf("\"ns_per_spring_eval\":null,");
+        printf("\"min_ns_per_particle_step\":%.2f,\"max_ns_per_particle_step\":%.2f,\"bandwidth_gbs\":%.2f,"
+               "\"floor_bytes_per_particle_step\":%.1f,",
+               per[0] * 1e9 / (double)np, per[reps - 1] * 1e9 / (double)np, o->gbs, fb);
+        if (o->gbs > 0)
+            printf("\"floor_ns_per_particle_step\":%.2f,\"times_floor\":%.3f}\n", fb / o->gbs, nsp / (fb / o->gbs));
+        else
+            printf("\"floor_ns_per_particle_step\":null,\"times_floor\":null}\n");
+    }
     fflush(stdout);
+    goto done;
+failed:
+    cli_error("bench: %s: %s", name, psys_solver_last_error(solver));
+    rc = EXIT_RUN_FAILED;
+done:
     psys_solver_destroy(solver);
     psys_system_destroy(sys);
-    return EXIT_OK;
+    return rc;
 }
+
+static int run_case(const char *name, const bench_opts *o)
+{
+    const char *integ = o->integrator;
+    if (strncmp(name, "cloth-", 6) == 0) {
+        int n = atoi(name + 6);
+        return bench_system(name, build_cloth(n), integ ? integ : "rk4", 1.0 / sqrt(17.6 * 100.0 * (double)n * n), o);
+    }
+    if (strcmp(name, "rope-1000000") == 0) {
+        double dt = 0;
+        psys_system *sys = build_rope(1000000, &dt);
+        return bench_system(name, sys, integ ? integ : "rk4", dt, o);
+    }
+    if (strcmp(name, "lj-melt") == 0)
+        return bench_system(name, build_lj(20), integ ? integ : "verlet", 0.005, o);
+    /* nbody-4096 */
+    return bench_system(name, build_nbody(4096), integ ? integ : "verlet", 1e-3, o);
+}
+
+static const char *const case_names[] = {"cloth-100", "cloth-256", "cloth-1024", "rope-1000000", "lj-melt",
+                                         "nbody-4096", NULL};
 
 int cmd_bench(int argc, char **argv)
 {
-    const char *which = NULL, *integrator = "rk4";
-    long long reps = 5;
-    double seconds = 0.4;
+    const char *which = NULL;
+    bench_opts o = {NULL, 5, 1, 0, 0.4, -1};
+    long long v;
     for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--reps") == 0 && i + 1 < argc) {
-            if (parse_int(argv[++i], 1, 64, &reps) != 0) {
+        const bool has = i + 1 < argc;
+        if (strcmp(argv[i], "--reps") == 0 && has) {
+            if (parse_int(argv[++i], 1, 64, &v) != 0) {
                 cli_error("--reps: must be an integer from 1 to 64 (got %s)", argv[i]);
                 return EXIT_BAD_INPUT;
             }
-        } else if (strcmp(argv[i], "--seconds") == 0 && i + 1 < argc) {
-            if (parse_positive(argv[++i], &seconds) != 0) {
+            o.reps = (int)v;
+        } else if (strcmp(argv[i], "--threads") == 0 && has) {
+            if (parse_int(argv[++i], 1, 4096, &v) != 0) {
+                cli_error("--threads: must be an integer from 1 to 4096 (got %s)", argv[i]);
+                return EXIT_BAD_INPUT;
+            }
+            o.threads = (int)v;
+        } else if (strcmp(argv[i], "--steps") == 0 && has) {
+            if (parse_int(argv[++i], 1, 1000000000, &o.steps) != 0) {
+                cli_error("--steps: must be an integer from 1 to 1000000000 (got %s)", argv[i]);
+                return EXIT_BAD_INPUT;
+            }
+        } else if (strcmp(argv[i], "--seconds") == 0 && has) {
+            if (parse_positive(argv[++i], &o.seconds) != 0) {
                 cli_error("--seconds: must be a number > 0 (got %s)", argv[i]);
                 return EXIT_BAD_INPUT;
             }
-        } else if (strcmp(argv[i], "--integrator") == 0 && i + 1 < argc) {
-            integrator = argv[++i];
-            if (!psys_solver_exists(integrator) || strcmp(integrator, "rk45") == 0) {
-                cli_error("--integrator: must be a fixed-step solver (got %s)", integrator);
+        } else if (strcmp(argv[i], "--bandwidth") == 0 && has) {
+            if (parse_positive(argv[++i], &o.gbs) != 0) {
+                cli_error("--bandwidth: must be a number > 0 (GB/s; got %s)", argv[i]);
+                return EXIT_BAD_INPUT;
+            }
+        } else if (strcmp(argv[i], "--integrator") == 0 && has) {
+            o.integrator = argv[++i];
+            if (!psys_solver_exists(o.integrator) || strcmp(o.integrator, "rk45") == 0) {
+                cli_error("--integrator: must be a fixed-step solver (got %s)", o.integrator);
                 return EXIT_BAD_INPUT;
             }
         } else if (argv[i][0] == '-' && (strcmp(argv[i], "--reps") == 0 || strcmp(argv[i], "--seconds") == 0
-                                         || strcmp(argv[i], "--integrator") == 0)) {
+                                         || strcmp(argv[i], "--integrator") == 0 || strcmp(argv[i], "--threads") == 0
+                                         || strcmp(argv[i], "--bandwidth") == 0 || strcmp(argv[i], "--steps") == 0)) {
             cli_error("%s needs a value (see psys --help)", argv[i]);
             return EXIT_BAD_INPUT;
         } else if (argv[i][0] == '-') {
@@ -151,19 +391,31 @@ int cmd_bench(int argc, char **argv)
             return EXIT_BAD_INPUT;
         }
     }
-    static const int sizes[] = {100, 256};
-    int rc = EXIT_OK, matched = 0;
-    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
-        char name[32];
-        snprintf(name, sizeof name, "cloth-%d", sizes[k]);
-        if (which && strcmp(which, name) != 0)
-            continue;
-        matched = 1;
-        rc |= bench_cloth(sizes[k], integrator, (int)reps, seconds);
-    }
-    if (!matched) {
-        cli_error("bench: unknown case \"%s\" (cases: cloth-100, cloth-256)", which);
+    bool known = !which;
+    for (int k = 0; which && case_names[k]; k++)
+        known |= strcmp(which, case_names[k]) == 0;
+    if (!known) {
+        cli_error("bench: unknown case \"%s\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, "
+                  "nbody-4096)",
+                  which);
         return EXIT_BAD_INPUT;
+    }
+    if (o.gbs < 0)
+        o.gbs = triad_gbs();
+    int rc = EXIT_OK;
+    for (int k = 0; case_names[k]; k++) {
+        if (which && strcmp(which, case_names[k]) != 0)
+            continue;
+        if (!which && !o.integrator && strncmp(case_names[k], "cloth-", 6) == 0) {
+            /* the whole suite: every cloth with rk4 and verlet */
+            bench_opts ov = o;
+            ov.integrator = "rk4";
+            rc |= run_case(case_names[k], &ov);
+            ov.integrator = "verlet";
+            rc |= run_case(case_names[k], &ov);
+        } else {
+            rc |= run_case(case_names[k], &o);
+        }
     }
     return rc;
 }
