@@ -546,6 +546,31 @@ void psys__amg_update(psys__amg *a)
     a->chol_ok = a->nc ? factor_coarsest(a) : 0;
 }
 
+/* Damped block Jacobi, the smoother: x = ω D⁻¹ b (from zero, before the
+ * coarse correction) or x += ω D⁻¹ (b - A x) (after it; t is scratch). The
+ * same ω both times keeps the V-cycle symmetric. It needs more cycles than
+ * Gauss–Seidel (about 20% on the stiff cloth) but one pass over the matrix
+ * instead of three, which is what costs: the sweeps are memory bound. */
+static void jacobi(const level *L, int bs, bool from_zero)
+{
+    const double w = 0.7;
+    size_t bb = (size_t)bs * bs;
+    if (!from_zero)
+        sym_mul(L, bs, L->x, L->t);
+    for (size_t i = 0; i < L->nb; i++) {
+        const double *di = L->dinv + i * bb;
+        double s[3];
+        for (int r = 0; r < bs; r++)
+            s[r] = L->b[i * bs + r] - (from_zero ? 0.0 : L->t[i * bs + r]);
+        for (int r = 0; r < bs; r++) {
+            double v = 0;
+            for (int c = 0; c < bs; c++)
+                v += di[r * bs + c] * s[c];
+            L->x[i * bs + r] = (from_zero ? 0.0 : L->x[i * bs + r]) + w * v;
+        }
+    }
+}
+
 static void vcycle(psys__amg *a, int l)
 {
     level *L = &a->lev[l];
@@ -561,7 +586,7 @@ static void vcycle(psys__amg *a, int l)
     }
     level *C = &a->lev[l + 1];
     size_t nc = C->nb * (size_t)bs;
-    forward_gs(L, bs);
+    jacobi(L, bs, true);
     /* residual into t, restricted into the next level's right-hand side */
     sym_mul(L, bs, L->x, L->t);
     for (size_t k = 0; k < nc; k++)
@@ -573,7 +598,7 @@ static void vcycle(psys__amg *a, int l)
     for (size_t i = 0; i < L->nb; i++)
         for (int r = 0; r < bs; r++)
             L->x[i * bs + r] += C->x[L->agg[i] * bs + r];
-    backward_gs(L, bs);
+    jacobi(L, bs, false);
 }
 
 void psys__amg_apply(psys__amg *a, const double *r, double *z)

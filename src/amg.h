@@ -23,8 +23,9 @@ void psys__amg_destroy(psys__amg *a);
  * (same pattern as at creation). No allocation. */
 void psys__amg_update(psys__amg *a);
 /* z = one symmetric V-cycle applied to r (an SPD approximation of A⁻¹ r):
- * forward block Gauss–Seidel before, backward after the coarse correction,
- * a dense Cholesky solve on the coarsest level. No allocation. */
+ * damped block Jacobi before and after the coarse correction, a dense
+ * Cholesky solve on the coarsest level (block Gauss–Seidel there when
+ * coarsening stalled above its size). No allocation. */
 void psys__amg_apply(psys__amg *a, const double *r, double *z);
 /* y = A x for the upper-triangle block matrix (nb, bs, row, col, val). */
 void psys__bsr_sym_mul(size_t nb, int bs, const size_t *row, const size_t *col, const double *val, const double *x,
