@@ -22,7 +22,8 @@ void psys__amg_destroy(psys__amg *a);
 /* Recompute the coarse matrices and smoother data from the fine values
  * (same pattern as at creation). No allocation. */
 void psys__amg_update(psys__amg *a);
-/* z = one symmetric V-cycle applied to r (an SPD approximation of A⁻¹ r):
+/* z = one symmetric multigrid cycle (V at the finest level, W below) applied
+ * to r (an SPD approximation of A⁻¹ r):
  * damped block Jacobi before and after the coarse correction, a dense
  * Cholesky solve on the coarsest level (block Gauss–Seidel there when
  * coarsening stalled above its size). No allocation. */
