@@ -18,7 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { MAX_LEVELS = 16, COARSE_NODES = 64 };
+enum { MAX_LEVELS = 16, COARSE_NODES = 16 }; /* coarsest level: a dense Cholesky of at most 48 unknowns */
 #define STRONG 0.25 /* a coupling is strong at >= STRONG × the largest at either end */
 #define NONE ((size_t)-1)
 

@@ -169,7 +169,7 @@ static void vcycle_is_spd(void)
             mat_free(&A);
             continue;
         }
-        CHECK(psys__amg_levels(amg) >= 3); /* 900 nodes, about 9 per aggregate, down to <= 64 */
+        CHECK(psys__amg_levels(amg) >= 3); /* 900 nodes, about 9 per aggregate, down to <= 16 */
         size_t n = A.nb * (size_t)bs;
         double *a = malloc(n * sizeof(double)), *b = malloc(n * sizeof(double));
         double *va = malloc(n * sizeof(double)), *vb = malloc(n * sizeof(double));
@@ -195,7 +195,7 @@ static void vcycle_is_spd(void)
 /* A system no larger than the coarsest level is solved exactly by one cycle. */
 static void small_system_exact(void)
 {
-    mat A = grid(6, 6, 3, 1e-3, 50.0);
+    mat A = grid(4, 4, 3, 1e-3, 50.0);
     psys__amg *amg = psys__amg_create(A.nb, 3, A.row, A.col, A.val);
     CHECK(amg != NULL && psys__amg_levels(amg) == 1);
     size_t n = A.nb * 3;
