@@ -12,9 +12,13 @@ set -euo pipefail
 # GL); its tests run it under xvfb (+ xauth) and drive it with xdotool,
 # x11-utils (xwininfo), imagemagick (import: X screenshots) and jq (reads
 # the saved scene).
+# lammps: Debian 12's LAMMPS (command `lmp`), for tests/cli/lammps.sh, which
+# runs a Lennard-Jones melt in LAMMPS and in psys (psys import lammps) and
+# compares their energies (skipped without it), and bench/lj_vs_lammps.sh.
 PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev libcairo2-dev fonts-dejavu-core ffmpeg libxml2-utils
       clang libclang-rt-14-dev
-      libsdl2-dev libepoxy-dev libstb-dev libgl1-mesa-dri xvfb xauth xdotool x11-utils imagemagick jq)
+      libsdl2-dev libepoxy-dev libstb-dev libgl1-mesa-dri xvfb xauth xdotool x11-utils imagemagick jq
+      lammps)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

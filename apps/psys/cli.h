@@ -48,5 +48,6 @@ int cmd_run_parse(int argc, char **argv, psys_settings *set);
 int cmd_check(int argc, char **argv);
 int cmd_bench(int argc, char **argv);
 int cmd_plot(int argc, char **argv);
+int cmd_import(int argc, char **argv);
 
 #endif

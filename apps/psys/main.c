@@ -22,6 +22,9 @@ static const char usage[] =
     "  psys bench [CASE] [--integrator NAME] [--threads N] [--reps N] [--seconds S] [--steps N] [--bandwidth GBS]\n"
     "                                   benchmark cases (cloth-100, cloth-256, cloth-1024, rope-1000000,\n"
     "                                   lj-melt, nbody-4096), JSON lines\n"
+    "  psys import lammps FILE.data --out SCENE.json [--cutoff RC] [--skin S] [--shift]\n"
+    "                 [--epsilon E --sigma S] [--dt H] [--steps N] [--integrator NAME]\n"
+    "                                   scene from a LAMMPS data file (write_data; atom_style atomic)\n"
     "  psys --help | --version\n"
     "\n"
     "SCENE is a JSON scene file (docs/scene-format.md), or - for standard input.\n"
@@ -87,6 +90,8 @@ int main(int argc, char **argv)
         return cmd_bench(argc - 1, argv + 1);
     if (strcmp(cmd, "plot") == 0)
         return cmd_plot(argc - 1, argv + 1);
+    if (strcmp(cmd, "import") == 0)
+        return cmd_import(argc - 1, argv + 1);
     if (strcmp(cmd, "view") == 0) {
 #ifdef PSYS_HAVE_VIEW
         return psys_view_main(argc - 1, argv + 1);
