@@ -317,7 +317,20 @@ static int cmp_pair(const void *a, const void *b)
     return p[1] < q[1] ? -1 : p[1] > q[1];
 }
 
-static size_t find_block(const size_t *row, const size_t *col, size_t i, size_t j)
+size_t psys__pairs_sort_unique(size_t *pairs, size_t k)
+{
+    qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
+    size_t u = 0;
+    for (size_t q = 0; q < k; q++)
+        if (u == 0 || cmp_pair(pairs + 2 * q, pairs + 2 * (u - 1)) != 0) {
+            pairs[2 * u] = pairs[2 * q];
+            pairs[2 * u + 1] = pairs[2 * q + 1];
+            u++;
+        }
+    return u;
+}
+
+size_t psys__block_find(const size_t *row, const size_t *col, size_t i, size_t j)
 {
     size_t lo = row[i], hi = row[i + 1];
     while (lo < hi) {
@@ -351,14 +364,7 @@ static psys_status build_ap(level *L, int bs)
                 k++;
             }
         }
-    qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
-    size_t u = 0;
-    for (size_t q = 0; q < k; q++)
-        if (u == 0 || cmp_pair(pairs + 2 * q, pairs + 2 * (u - 1)) != 0) {
-            pairs[2 * u] = pairs[2 * q];
-            pairs[2 * u + 1] = pairs[2 * q + 1];
-            u++;
-        }
+    size_t u = psys__pairs_sort_unique(pairs, k);
     L->ap_row = psys__calloc(L->nb + 1, sizeof(size_t));
     L->ap_col = psys__calloc(u ? u : 1, sizeof(size_t));
     L->ap_val = psys__calloc(u ? u * (size_t)bs * bs : 1, sizeof(double));
@@ -377,8 +383,8 @@ static psys_status build_ap(level *L, int bs)
     for (size_t i = 0; i < L->nb; i++)
         for (size_t e = L->row[i]; e < L->row[i + 1]; e++) {
             size_t j = L->col[e];
-            L->ap_map[2 * e] = find_block(L->ap_row, L->ap_col, i, L->agg[j]);
-            L->ap_map[2 * e + 1] = j != i ? find_block(L->ap_row, L->ap_col, j, L->agg[i]) : NONE;
+            L->ap_map[2 * e] = psys__block_find(L->ap_row, L->ap_col, i, L->agg[j]);
+            L->ap_map[2 * e + 1] = j != i ? psys__block_find(L->ap_row, L->ap_col, j, L->agg[i]) : NONE;
         }
     return PSYS_OK;
 }
@@ -399,14 +405,7 @@ static psys_status build_coarse(level *L, level *C, int bs, size_t nc)
             pairs[2 * k] = I < J ? I : J;
             pairs[2 * k + 1] = I < J ? J : I;
         }
-    qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
-    size_t u = 0;
-    for (size_t q = 0; q < k; q++)
-        if (u == 0 || cmp_pair(pairs + 2 * q, pairs + 2 * (u - 1)) != 0) {
-            pairs[2 * u] = pairs[2 * q];
-            pairs[2 * u + 1] = pairs[2 * q + 1];
-            u++;
-        }
+    size_t u = psys__pairs_sort_unique(pairs, k);
     size_t n = nc * (size_t)bs;
     C->nb = nc;
     C->nnz = u;
@@ -436,7 +435,7 @@ static psys_status build_coarse(level *L, level *C, int bs, size_t nc)
     for (size_t i = 0; i < L->nb; i++)
         for (size_t e = L->row[i]; e < L->row[i + 1]; e++) {
             size_t j = L->col[e], I = L->agg[i], J = L->agg[j];
-            L->map[e] = find_block(C->row, C->col, I < J ? I : J, I < J ? J : I);
+            L->map[e] = psys__block_find(C->row, C->col, I < J ? I : J, I < J ? J : I);
             L->how[e] = i == j ? 0 : I < J ? 0 : I > J ? 1 : 2;
         }
     return build_ap(L, bs);

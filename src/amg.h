@@ -28,6 +28,12 @@ void psys__amg_update(psys__amg *a);
  * Cholesky solve on the coarsest level (block Gauss–Seidel there when
  * coarsening stalled above its size). No allocation. */
 void psys__amg_apply(psys__amg *a, const double *r, double *z);
+/* Sort k pairs (i, j) (2k numbers) by i, then j, and drop repeats; returns
+ * how many are left. */
+size_t psys__pairs_sort_unique(size_t *pairs, size_t k);
+/* Position of block (i, j) among block rows (row, col; columns ascending in
+ * each row), or (size_t)-1 when absent. */
+size_t psys__block_find(const size_t *row, const size_t *col, size_t i, size_t j);
 /* y = A x for the upper-triangle block matrix (nb, bs, row, col, val). */
 void psys__bsr_sym_mul(size_t nb, int bs, const size_t *row, const size_t *col, const double *val, const double *x,
                        double *y);

@@ -64,17 +64,8 @@ static void bsr_free(bsr *m)
 
 static long bsr_find(const bsr *m, size_t i, size_t j)
 {
-    size_t lo = m->row[i], hi = m->row[i + 1];
-    while (lo < hi) {
-        size_t mid = (lo + hi) / 2;
-        if (m->col[mid] < j)
-            lo = mid + 1;
-        else if (m->col[mid] > j)
-            hi = mid;
-        else
-            return (long)mid;
-    }
-    return -1;
+    size_t e = psys__block_find(m->row, m->col, i, j);
+    return e == (size_t)-1 ? -1 : (long)e;
 }
 
 static void note_miss(bsr *m, size_t i, size_t j)
@@ -142,14 +133,6 @@ static void assemble_add(psys_jacobian *J, size_t i, size_t j, const double *dfd
         assemble_add_b(m, i, j, dfdx, dfdv, 2);
 }
 
-static int cmp_pair(const void *a, const void *b)
-{
-    const size_t *p = a, *q = b;
-    if (p[0] != q[0])
-        return p[0] < q[0] ? -1 : 1;
-    return p[1] < q[1] ? -1 : p[1] > q[1];
-}
-
 /* New pattern = old pattern ∪ missed pairs ∪ diagonal. */
 static psys_status bsr_rebuild(bsr *m)
 {
@@ -170,14 +153,7 @@ static psys_status bsr_rebuild(bsr *m)
     if (m->nmiss) /* m->miss may be NULL when no pair was missing */
         memcpy(pairs + 2 * k, m->miss, m->nmiss * 2 * sizeof(size_t));
     k += m->nmiss;
-    qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
-    size_t u = 0;
-    for (size_t q = 0; q < k; q++)
-        if (u == 0 || cmp_pair(pairs + 2 * q, pairs + 2 * (u - 1)) != 0) {
-            pairs[2 * u] = pairs[2 * q];
-            pairs[2 * u + 1] = pairs[2 * q + 1];
-            u++;
-        }
+    size_t u = psys__pairs_sort_unique(pairs, k);
     size_t *col = psys__calloc(u, sizeof(size_t));
     double *val = psys__calloc(u * (size_t)m->bs * m->bs, sizeof(double));
     size_t *slot = psys__calloc(m->ncall, sizeof(size_t)), *slot_pair = psys__calloc(m->ncall, 2 * sizeof(size_t));
