@@ -148,18 +148,28 @@ static const double *pair_weights(pair_force *p, const psys_force_eval *e, bool 
  * in ascending i, serial callers only). */
 PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, const pair_image *m,
                               const double *x, const double *w, size_t n, size_t b, const bool want_f, double *f,
-                              const bool want_u, double *ep, double *total)
+                              const bool want_u, double *ep, double *total, const unsigned char *mark)
 {
     size_t i0 = b * DIRECT_IB, i1 = i0 + DIRECT_IB < n ? i0 + DIRECT_IB : n;
+    if (mark) { /* MPI (mpi.c): only the rows this rank owns */
+        size_t i = i0;
+        while (i < i1 && !mark[i])
+            i++;
+        if (i == i1)
+            return;
+    }
     double acc[DIRECT_IB][3], us[DIRECT_IB];
     memset(acc, 0, sizeof acc);
     memset(us, 0, sizeof us);
     for (size_t j0 = 0; j0 < n; j0 += DIRECT_JB) {
         size_t j1 = j0 + DIRECT_JB < n ? j0 + DIRECT_JB : n;
         for (size_t i = i0; i < i1; i++)
-            pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
+            if (!mark || mark[i])
+                pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
     }
     for (size_t i = i0; i < i1; i++) {
+        if (mark && !mark[i])
+            continue;
         if (want_f)
             for (int k = 0; k < d; k++)
                 f[i * d + k] += acc[i - i0][k];
@@ -173,17 +183,17 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
 }
 
 typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
-                          double *f, double *ep, double *total, int nt);
+                          double *f, double *ep, double *total, int nt, const unsigned char *mark);
 
 #define DIRECT_FN(name, LAW, D, WF, WU)                                                                      \
     static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
-                     double *f, double *ep, double *total, int nt)                                           \
+                     double *f, double *ep, double *total, int nt, const unsigned char *mark)                \
     {                                                                                                        \
         size_t nblocks = (n + DIRECT_IB - 1) / DIRECT_IB;                                                    \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))                          \
         for (size_t b = 0; b < nblocks; b++)                                                                 \
-            direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total);                                    \
+            direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark);                              \
     }
 
 /* Grid method: gather over the neighbour lists, for every particle or only
@@ -331,7 +341,8 @@ static void direct_eval(const pair_force *p, const pair_image *m, const double *
                         bool want_u, double *f, double *ep, double *total)
 {
     int nt = ep || !want_u ? pair_threads(p, (double)n * (double)n) : 1;
-    direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt);
+    const unsigned char *mark = want_u ? NULL : psys__dist_mark(p->sys);
+    direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt, mark);
 }
 
 /* Particle i's position differs (bitwise, up to NaN payloads) from the cached one. */
@@ -363,6 +374,14 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     grid_fn fn = (g->half ? half_fns : grid_fns)[p->law][variant(d, want_u)];
     if (want_u) {
         fn(p, m, x, w, n, NULL, ep, nt);
+        return;
+    }
+    const unsigned char *own = psys__dist_mark(p->sys);
+    if (own) { /* MPI (mpi.c): this rank's rows only, past the cache; the others are not read */
+        fn(p, m, x, w, n, own, g->fcache, nt);
+        g->cache_ok = false;
+        for (size_t k = 0; k < nd; k++)
+            f[k] += g->fcache[k];
         return;
     }
     const bool cacheable = p->law != PSYS_PAIR_USER;

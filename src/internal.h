@@ -104,8 +104,29 @@ struct psys_system {
     size_t ncharge, charge_cap;
     psys__box box;         /* simulation box (box.c) */
     int threads;           /* threads for parallel force evaluation, 0 = OpenMP default */
+    struct psys__dist *dist; /* MPI decomposition (mpi.c, PSYS_MPI builds), NULL = serial */
     psys_error err;
 };
+
+/* ---- MPI (mpi.c, only in -DPSYS_MPI=ON builds; docs/mpi.md) ---- */
+typedef struct psys__dist psys__dist;
+#ifdef PSYS_MPI
+/** Free a decomposition (NULL is fine). */
+void psys__dist_free(psys__dist *d);
+/** Collective: split the rows of the evaluation at positions x among the
+ *  ranks; false when every rank evaluates every row this time. */
+bool psys__dist_begin(const psys_system *s, const double *x);
+/** Collective: give every rank the owners' rows of f. */
+psys_status psys__dist_finish(const psys_system *s, double *f);
+/** During a split evaluation, 1 for the rows this rank computes; NULL otherwise. */
+const unsigned char *psys__dist_mark(const psys_system *s);
+#else
+static inline const unsigned char *psys__dist_mark(const psys_system *s)
+{
+    (void)s;
+    return NULL;
+}
+#endif
 
 /** Controller state at time t into x and v (dim numbers each). */
 void psys__controller_eval(const psys__controller *c, int dim, double t, double *x, double *v);

@@ -269,10 +269,13 @@ PAIR_INLINE void bh_walk(const pair_force *p, const int law, const int d, const 
         const double theta2 = p->def.theta * p->def.theta;                                                   \
         const uint32_t *perm = p->bh.perm;                                                                   \
         double *ep = p->epart;                                                                               \
+        const unsigned char *mk = WF ? psys__dist_mark(p->sys) : NULL; /* MPI: own rows only */             \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 32) num_threads(nt) if (nt > 1))                         \
         for (size_t t = 0; t < n; t++) {                                                                     \
             size_t i = perm[t];                                                                              \
+            if (mk && !mk[i])                                                                                \
+                continue;                                                                                    \
             double acc[3] = {0, 0, 0}, us = 0;                                                               \
             bh_walk(p, LAW, D, e->x, w, i, theta2, WF, acc, WU, &us);                                        \
             if (WF)                                                                                          \

@@ -45,6 +45,9 @@ void psys_system_destroy(psys_system *s)
     free(s->flags);
     free(s->ids);
     free(s->id_index);
+#ifdef PSYS_MPI
+    psys__dist_free(s->dist);
+#endif
     free(s);
 }
 
@@ -369,15 +372,25 @@ void psys__sys_eval(const psys_system *s, double t, const double *x, const doubl
 }
 
 /* Clear f, let every force object add into it, then the planes' contact
- * forces, which depend on the total applied force (notes §7.3). */
-static void accumulate(const psys_system *s, const psys_force_eval *e, double *f)
+ * forces, which depend on the total applied force (notes §7.3). With MPI
+ * (mpi.c), pair forces fill only this rank's rows and the rows are combined
+ * before the contact forces: every rank ends with the serial f, bit for bit. */
+static psys_status accumulate(const psys_system *s, const psys_force_eval *e, double *f)
 {
+#ifdef PSYS_MPI
+    bool split = s->dist && psys__dist_begin(s, e->x);
+#endif
     if (s->n) /* f may be NULL with no particles */
         memset(f, 0, sizeof(double) * s->n * (size_t)s->dim);
     for (size_t i = 0; i < s->nforces; i++)
         s->forces[i].cls->apply(s->forces[i].data, e, f);
+#ifdef PSYS_MPI
+    if (split && psys__dist_finish(s, f) != PSYS_OK)
+        return PSYS_ERR_INVALID;
+#endif
     if (s->nplanes)
         psys__contact_forces(s, e->x, e->v, f);
+    return PSYS_OK;
 }
 
 /* ---- ODE view ---- */
@@ -427,7 +440,8 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     psys__sys_eval(s, t, y, y + nd, &e);
     if (s->springs && psys__springs_prepare(s->springs) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
-    accumulate(s, &e, s->f);
+    if (accumulate(s, &e, s->f) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "MPI exchange of the forces failed");
     memcpy(ydot, y + nd, nd * sizeof(double));
     double *a = ydot + nd;
     for (size_t i = 0; i < s->n; i++) {
@@ -492,7 +506,8 @@ psys_status psys_system_compute_forces(psys_system *s, double *f)
     psys__sys_eval(s, s->t, s->x, s->v, &e);
     if (s->springs && psys__springs_prepare(s->springs) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
-    accumulate(s, &e, f);
+    if (accumulate(s, &e, f) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "MPI exchange of the forces failed");
     return PSYS_OK;
 }
 

@@ -9,6 +9,8 @@
 /** Exit statuses of DESIGN §3. */
 enum { EXIT_OK = 0, EXIT_RUN_FAILED = 1, EXIT_BAD_INPUT = 2 };
 
+/** Nonzero: cli_error prints nothing (MPI ranks other than 0). */
+extern int cli_silent;
 /** Print "psys: " + message + newline to standard error. */
 void cli_error(const char *fmt, ...)
 #if defined(__GNUC__)

@@ -10,9 +10,31 @@
 #include <time.h>
 #include <unistd.h>
 
+#ifdef PSYS_MPI
+#include "psys/psys_mpi.h"
+#endif
+
 static volatile sig_atomic_t stop_signal = 0;
 
 static void on_signal(int sig) { stop_signal = sig; }
+
+/* MPI (docs/mpi.md): this process's rank and the number of ranks; 0 and 1
+ * in a build without MPI or when run without mpiexec. Rank 0 reads the scene
+ * and writes every file; all ranks step the same replicated system. */
+static int mpi_rank = 0, mpi_size = 1;
+
+/* Rank 0's v on every rank: decisions only rank 0 can make (its files, its
+ * signals) taken by all. A collective with several ranks, v itself otherwise. */
+static int agree(int v)
+{
+#ifdef PSYS_MPI
+    if (mpi_size > 1)
+        MPI_Bcast(&v, 1, MPI_INT, 0, MPI_COMM_WORLD);
+#else
+    (void)mpi_size;
+#endif
+    return v;
+}
 
 typedef struct run_opts {
     const char *scene;
@@ -560,6 +582,82 @@ static int draw_frames(renderer *ren, sink *snk, const psys_system *sys, long lo
     return 0;
 }
 
+/* The scene of the run (SCENE, or the checkpoint of --resume); NULL after
+ * printing why not. */
+static psys_scene *load_for_run(const run_opts *o)
+{
+    psys_error err;
+    psys_scene *scene = NULL;
+    if (o->scene) {
+        if (!(scene = psys_scene_load_file(o->scene, &err))) {
+            cli_error("%s: %s", display_name(o->scene), err.message);
+            return NULL;
+        }
+    }
+    if (o->resume) {
+        /* The checkpoint holds the complete system; SCENE, if given, was only validated. */
+        psys_scene_destroy(scene);
+        if (!(scene = psys_scene_load_file(o->resume, &err))) {
+            cli_error("%s: %s", display_name(o->resume), err.message);
+            return NULL;
+        }
+        if (!psys_scene_resume_state(scene)->present) {
+            cli_error("%s: checkpoint: required key missing (not a checkpoint written by --checkpoint)",
+                      display_name(o->resume));
+            psys_scene_destroy(scene);
+            return NULL;
+        }
+        /* A resumed run writes only the outputs asked for now: reusing the
+         * paths stored in the checkpoint would overwrite the first run's files. */
+        psys_settings *rset = psys_scene_settings(scene);
+        rset->trajectory[0] = rset->energy[0] = rset->render[0] = '\0';
+    }
+    return scene;
+}
+
+#ifdef PSYS_MPI
+/* Rank 0's scene (NULL: it failed) to every rank, as the exact scene text a
+ * checkpoint holds (saving and loading is exact, DESIGN §2). Every rank
+ * returns its scene, or NULL when any rank has none. */
+static psys_scene *share_scene(psys_scene *scene)
+{
+    psys_error err;
+    char *text = NULL;
+    long long len = -1;
+    if (mpi_rank == 0 && scene) {
+        const psys_resume_state *rs = psys_scene_resume_state(scene);
+        if (!(text = psys_scene_to_string(scene, rs->present ? rs : NULL, &err)))
+            cli_error("cannot pass the scene to the other MPI ranks: %s", err.message);
+        else
+            len = (long long)strlen(text);
+    }
+    MPI_Bcast(&len, 1, MPI_LONG_LONG, 0, MPI_COMM_WORLD);
+    int ok = len >= 0;
+    if (ok && mpi_rank != 0 && !(text = malloc((size_t)len + 1)))
+        ok = 0;
+    int all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    if (all) {
+        for (long long at = 0; at < len; at += 1 << 30) {
+            long long chunk = len - at < (1 << 30) ? len - at : (1 << 30);
+            MPI_Bcast(text + at, (int)chunk, MPI_CHAR, 0, MPI_COMM_WORLD);
+        }
+        text[len] = '\0';
+        if (mpi_rank != 0 && !(scene = psys_scene_load_string(text, (size_t)len, &err)))
+            ok = 0;
+        MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    }
+    free(text);
+    if (!all) {
+        if (len >= 0)
+            cli_error("the other MPI ranks could not take the scene (out of memory?)");
+        psys_scene_destroy(scene);
+        return NULL;
+    }
+    return scene;
+}
+#endif
+
 /* ---------------------------------------------------------------- psys run */
 
 /* Parse-only entry point (fuzz/fuzz_cli.c): the options of `psys run` checked
@@ -629,38 +727,20 @@ static void abort_outputs(outputs *out, outfile *ck, outfile *plot, sink *snk)
     energy_free(&out->plot);
 }
 
-int cmd_run(int argc, char **argv)
+static int run_main(int argc, char **argv)
 {
     run_opts o;
     if (parse_args(argc, argv, &o) != 0)
         return EXIT_BAD_INPUT;
+    const char *source = display_name(o.resume ? o.resume : o.scene);
+    psys_scene *scene = mpi_rank == 0 ? load_for_run(&o) : NULL;
+#ifdef PSYS_MPI
+    if (mpi_size > 1)
+        scene = share_scene(scene);
+#endif
+    if (!scene)
+        return EXIT_BAD_INPUT;
     psys_error err;
-    psys_scene *scene = NULL;
-    if (o.scene) {
-        if (!(scene = psys_scene_load_file(o.scene, &err))) {
-            cli_error("%s: %s", display_name(o.scene), err.message);
-            return EXIT_BAD_INPUT;
-        }
-    }
-    const char *source = o.scene ? display_name(o.scene) : NULL;
-    if (o.resume) {
-        /* The checkpoint holds the complete system; SCENE, if given, was only validated. */
-        psys_scene_destroy(scene);
-        if (!(scene = psys_scene_load_file(o.resume, &err))) {
-            cli_error("%s: %s", display_name(o.resume), err.message);
-            return EXIT_BAD_INPUT;
-        }
-        source = display_name(o.resume);
-        if (!psys_scene_resume_state(scene)->present) {
-            cli_error("%s: checkpoint: required key missing (not a checkpoint written by --checkpoint)", source);
-            psys_scene_destroy(scene);
-            return EXIT_BAD_INPUT;
-        }
-        /* A resumed run writes only the outputs asked for now: reusing the
-         * paths stored in the checkpoint would overwrite the first run's files. */
-        psys_settings *rset = psys_scene_settings(scene);
-        rset->trajectory[0] = rset->energy[0] = rset->render[0] = '\0';
-    }
     psys_settings *set = psys_scene_settings(scene);
     psys_system *sys = psys_scene_system(scene);
     picture_opts pic;
@@ -680,13 +760,31 @@ int cmd_run(int argc, char **argv)
         parse_int(o.threads, 1, 4096, &nthreads);
         psys_system_set_threads(sys, (int)nthreads);
     }
+#ifdef PSYS_MPI
+    if (mpi_size > 1) {
+        if (!o.threads)
+            psys_system_set_threads(sys, 1); /* a rank per core; --threads asks for more */
+        if (psys_system_set_comm(sys, MPI_COMM_WORLD) != PSYS_OK) {
+            cli_error("%s: %s", source, psys_system_last_error(sys));
+            psys_run_destroy(run);
+            psys_scene_destroy(scene);
+            return EXIT_RUN_FAILED;
+        }
+        if (mpi_rank != 0) { /* rank 0 writes every file */
+            set->trajectory[0] = set->energy[0] = set->render[0] = '\0';
+            o.checkpoint = o.plot = NULL;
+            pic.traj = TRAJ_NONE;
+            o.quiet = 1;
+        }
+    }
+#endif
     outputs out;
     outfile ck, plot_out;
     sink *snk = NULL;
     memset(&out, 0, sizeof out);
     memset(&ck, 0, sizeof ck);
     memset(&plot_out, 0, sizeof plot_out);
-    if (open_outputs(&o, set, &pic, &out, &ck, &plot_out, &snk) != 0) {
+    if (agree(open_outputs(&o, set, &pic, &out, &ck, &plot_out, &snk)) != 0) {
         abort_outputs(&out, &ck, &plot_out, snk);
         psys_run_destroy(run);
         psys_scene_destroy(scene);
@@ -714,6 +812,7 @@ int cmd_run(int argc, char **argv)
      * single PNG is framed and drawn at the end. */
     renderer *ren = NULL;
     frame_clock fc = {psys_system_time(sys), pic.fps, 0};
+    int framing_failed = 0;
     if (snk && sink_takes_frames(snk)) {
         bounds b;
         bounds_init(&b, &pic.cam, pic.width, pic.height);
@@ -723,12 +822,13 @@ int cmd_run(int argc, char **argv)
         else if (!(ren = make_renderer(&pic, set, sys, &b)))
             cli_error("%s: out of memory for a %dx%d picture", o.render ? "--render" : "output.render", pic.width,
                       pic.height);
-        if (!ren) {
-            abort_outputs(&out, &ck, &plot_out, snk);
-            psys_run_destroy(run);
-            psys_scene_destroy(scene);
-            return EXIT_RUN_FAILED;
-        }
+        framing_failed = !ren;
+    }
+    if (agree(framing_failed)) {
+        abort_outputs(&out, &ck, &plot_out, snk);
+        psys_run_destroy(run);
+        psys_scene_destroy(scene);
+        return EXIT_RUN_FAILED;
     }
     prog.phase_start = now_seconds();
 
@@ -747,7 +847,7 @@ int cmd_run(int argc, char **argv)
     const char *render_label = o.render ? "--render" : "output.render";
     if (ren)
         pic_failed = draw_frames(ren, snk, sys, frames_due(&fc, psys_system_time(sys)), render_label);
-    while (!psys_run_done(run) && !stop_signal && !io_failed && !pic_failed) {
+    while (!psys_run_done(run) && agree(!stop_signal && !io_failed && !pic_failed)) {
         if (psys_run_step(run, &err) != PSYS_OK) {
             status = EXIT_RUN_FAILED;
             break;
@@ -811,7 +911,29 @@ int cmd_run(int argc, char **argv)
                       psys_run_step_index(run), psys_system_time(sys));
         status = 128 + stop_signal;
     }
+    status = agree(status);
     psys_run_destroy(run);
     psys_scene_destroy(scene);
     return status;
+}
+
+/* `psys run`; in an MPI build also under `mpiexec -n R psys run ...`
+ * (docs/mpi.md). Run without mpiexec it is one rank: the serial run. */
+int cmd_run(int argc, char **argv)
+{
+#ifdef PSYS_MPI
+    int inited = 0;
+    MPI_Initialized(&inited);
+    if (!inited)
+        MPI_Init(NULL, NULL);
+    MPI_Comm_rank(MPI_COMM_WORLD, &mpi_rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &mpi_size);
+    cli_silent = mpi_rank != 0;
+    int status = run_main(argc, argv);
+    if (!inited)
+        MPI_Finalize();
+    return status;
+#else
+    return run_main(argc, argv);
+#endif
 }

@@ -9,9 +9,15 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+/* Under mpiexec only rank 0 speaks (cmd_run.c sets it); the other ranks
+ * meet the same errors in the same places and stay silent. */
+int cli_silent = 0;
+
 void cli_error(const char *fmt, ...)
 {
     va_list ap;
+    if (cli_silent)
+        return;
     fputs("psys: ", stderr);
     va_start(ap, fmt);
     vfprintf(stderr, fmt, ap);
