@@ -6,7 +6,7 @@ WERROR     ?= $(if $(CI),ON,OFF)
 JOBS       ?= 2
 CMAKE_GEN  := -G Ninja
 
-.PHONY: all deps build test test-sanitize fuzz demo images bench install clean
+.PHONY: all deps build test test-sanitize test-mpi fuzz demo images bench install clean
 
 all: build
 
@@ -27,6 +27,15 @@ test-sanitize: deps
 	      -DPSYS_FUZZ_TARGETS=OFF
 	cmake --build $(SAN_BUILD) -j $(JOBS)
 	ctest --test-dir $(SAN_BUILD) --output-on-failure -j $(JOBS)
+
+# The MPI build (docs/mpi.md): the same psys built with -DPSYS_MPI=ON in its
+# own directory, and the MPI tests (label mpi): 2 and 4 ranks under mpiexec
+# on this machine (oversubscribed), byte for byte against the serial run.
+MPI_BUILD ?= build-mpi
+test-mpi: deps
+	cmake -S . -B $(MPI_BUILD) $(CMAKE_GEN) -DCMAKE_BUILD_TYPE=Release -DPSYS_MPI=ON -DPSYS_WERROR=$(WERROR)
+	cmake --build $(MPI_BUILD) -j $(JOBS) --target psys_cli
+	ctest --test-dir $(MPI_BUILD) --output-on-failure -j $(JOBS) -L mpi
 
 # Long fuzzing runs (docs/trust.md): FUZZ_SECONDS per target (scene loader,
 # CLI parser); the corpus grows in $(BUILD)/fuzz-corpus/, crashes land in
@@ -51,4 +60,4 @@ install: build
 	cmake --install $(BUILD)
 
 clean:
-	rm -rf $(BUILD) $(SAN_BUILD) out
+	rm -rf $(BUILD) $(SAN_BUILD) $(MPI_BUILD) out

@@ -12,13 +12,15 @@ set -euo pipefail
 # GL); its tests run it under xvfb (+ xauth) and drive it with xdotool,
 # x11-utils (xwininfo), imagemagick (import: X screenshots) and jq (reads
 # the saved scene).
+# mpich and libmpich-dev: the MPI build (make test-mpi, docs/mpi.md;
+# Open MPI's libopenmpi-dev works too).
 # lammps: Debian 12's LAMMPS (command `lmp`), for tests/cli/lammps.sh, which
 # runs a Lennard-Jones melt in LAMMPS and in psys (psys import lammps) and
 # compares their energies (skipped without it), and bench/lj_vs_lammps.sh.
 PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev libcairo2-dev fonts-dejavu-core ffmpeg libxml2-utils
       clang libclang-rt-14-dev
       libsdl2-dev libepoxy-dev libstb-dev libgl1-mesa-dri xvfb xauth xdotool x11-utils imagemagick jq
-      lammps)
+      lammps mpich libmpich-dev)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
