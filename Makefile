@@ -34,7 +34,7 @@ test-sanitize: deps
 MPI_BUILD ?= build-mpi
 test-mpi: deps
 	cmake -S . -B $(MPI_BUILD) $(CMAKE_GEN) -DCMAKE_BUILD_TYPE=Release -DPSYS_MPI=ON -DPSYS_WERROR=$(WERROR)
-	cmake --build $(MPI_BUILD) -j $(JOBS) --target psys_cli
+	cmake --build $(MPI_BUILD) -j $(JOBS) --target psys_cli test_mpi
 	ctest --test-dir $(MPI_BUILD) --output-on-failure -j $(JOBS) -L mpi
 
 # Long fuzzing runs (docs/trust.md): FUZZ_SECONDS per target (scene loader,
