@@ -39,19 +39,19 @@ check "the window title starts with psys" bash -c "xdotool getwindowname $WID | 
 
 x() { xdotool "$@"; }
 # A (300,300), B (500,300), C (400,450): three clicks on empty space.
-x mousemove --window "$WID" 300 300 click 1 \
-  mousemove --window "$WID" 500 300 click 1 \
-  mousemove --window "$WID" 400 450 click 1
+x mousemove --sync --window "$WID" 300 300 click 1 \
+  mousemove --sync --window "$WID" 500 300 click 1 \
+  mousemove --sync --window "$WID" 400 450 click 1
 # Springs A-B and B-C: left drags from one particle to another.
-x mousemove --window "$WID" 300 300 mousedown 1 mousemove --window "$WID" 400 310 \
-  mousemove --window "$WID" 500 300 mouseup 1
-x mousemove --window "$WID" 500 300 mousedown 1 mousemove --window "$WID" 450 380 \
-  mousemove --window "$WID" 400 450 mouseup 1
+x mousemove --sync --window "$WID" 300 300 mousedown 1 mousemove --sync --window "$WID" 400 310 \
+  mousemove --sync --window "$WID" 500 300 mouseup 1
+x mousemove --sync --window "$WID" 500 300 mousedown 1 mousemove --sync --window "$WID" 450 380 \
+  mousemove --sync --window "$WID" 400 450 mouseup 1
 # Pin A: P with the pointer over it.
-x mousemove --window "$WID" 300 300 key p
+x mousemove --sync --window "$WID" 300 300 key p
 # Drag C with the mouse spring toward (460, 560) and hold it there a while.
-x mousemove --window "$WID" 400 450 mousedown 3 mousemove --window "$WID" 430 500 \
-  mousemove --window "$WID" 460 560
+x mousemove --sync --window "$WID" 400 450 mousedown 3 mousemove --sync --window "$WID" 430 500 \
+  mousemove --sync --window "$WID" 460 560
 sleep 2
 x mouseup 3
 # The window really shows something (an X screenshot of it, not just GL's buffer).
@@ -128,11 +128,11 @@ if [ -s saved.json ]; then
     VIEW_PID=$!
     WID=
     if wait_for 60 find_window && [ -n "$WID" ] && wait_for 60 viewable; then
-        x mousemove --window "$WID" 20 700 key g
-        x mousemove --window "$WID" "$BX" "$BY" key Delete
+        x mousemove --sync --window "$WID" 20 700 key g
+        x mousemove --sync --window "$WID" "$BX" "$BY" key Delete
         x key ctrl+z
-        x mousemove --window "$WID" "$SX" "$SY" key Delete
-        x mousemove --window "$WID" "$CX" "$CY" key m
+        x mousemove --sync --window "$WID" "$SX" "$SY" key Delete
+        x mousemove --sync --window "$WID" "$CX" "$CY" key m
         x key ctrl+s
         edited() { [ -s edited.json ]; }
         check "Ctrl+S writes edited.json (--save)" wait_for 60 edited
