@@ -52,4 +52,9 @@ int cmd_bench(int argc, char **argv);
 int cmd_plot(int argc, char **argv);
 int cmd_import(int argc, char **argv);
 
+/* "--name VALUE" or "--name=VALUE" at argv[*i]: 1 if it is this option (*val
+ * set, *i advanced past a separate value; *bad set, with a message, when the
+ * value is missing), 0 if not. */
+int cli_take(int argc, char **argv, int *i, const char *name, const char **val, int *bad);
+
 #endif

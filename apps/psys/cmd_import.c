@@ -20,26 +20,6 @@ typedef struct import_opts {
     int shift;
 } import_opts;
 
-/* "--name VALUE" or "--name=VALUE"; returns 1 if argv[*i] is this option. */
-static int take(int argc, char **argv, int *i, const char *name, const char **val, int *bad)
-{
-    size_t n = strlen(name);
-    if (strncmp(argv[*i], name, n) != 0)
-        return 0;
-    if (argv[*i][n] == '=') {
-        *val = argv[*i] + n + 1;
-        return 1;
-    }
-    if (argv[*i][n] != '\0')
-        return 0;
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value (see psys --help)", name);
-        *bad = 1;
-        return 1;
-    }
-    *val = argv[++*i];
-    return 1;
-}
 
 static const char import_usage[] = "usage: psys import lammps FILE.data --out SCENE.json [options]; see psys --help";
 
@@ -49,11 +29,11 @@ static int parse_args(int argc, char **argv, import_opts *o)
     for (int i = 1; i < argc; i++) {
         int bad = 0;
         const char *a = argv[i];
-        if (take(argc, argv, &i, "--out", &o->out, &bad) || take(argc, argv, &i, "--cutoff", &o->cutoff, &bad)
-            || take(argc, argv, &i, "--skin", &o->skin, &bad) || take(argc, argv, &i, "--epsilon", &o->epsilon, &bad)
-            || take(argc, argv, &i, "--sigma", &o->sigma, &bad) || take(argc, argv, &i, "--dt", &o->dt, &bad)
-            || take(argc, argv, &i, "--steps", &o->steps, &bad)
-            || take(argc, argv, &i, "--integrator", &o->integrator, &bad)) {
+        if (cli_take(argc, argv, &i, "--out", &o->out, &bad) || cli_take(argc, argv, &i, "--cutoff", &o->cutoff, &bad)
+            || cli_take(argc, argv, &i, "--skin", &o->skin, &bad) || cli_take(argc, argv, &i, "--epsilon", &o->epsilon, &bad)
+            || cli_take(argc, argv, &i, "--sigma", &o->sigma, &bad) || cli_take(argc, argv, &i, "--dt", &o->dt, &bad)
+            || cli_take(argc, argv, &i, "--steps", &o->steps, &bad)
+            || cli_take(argc, argv, &i, "--integrator", &o->integrator, &bad)) {
             if (bad)
                 return -1;
         } else if (strcmp(a, "--shift") == 0) {

@@ -17,26 +17,6 @@ typedef struct plot_opts {
     const char *file, *x, *y, *out, *particle, *size, *title;
 } plot_opts;
 
-static int take(int argc, char **argv, int *i, const char *name, const char **val, int *bad)
-{
-    size_t n = strlen(name);
-    if (strncmp(argv[*i], name, n) != 0)
-        return 0;
-    if (argv[*i][n] == '=') {
-        *val = argv[*i] + n + 1;
-        return 1;
-    }
-    if (argv[*i][n] != '\0')
-        return 0;
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value (see psys --help)", name);
-        *bad = 1;
-        return 1;
-    }
-    *val = argv[++*i];
-    return 1;
-}
-
 /* Read all of fp into a NUL-terminated buffer. */
 static char *slurp(FILE *fp, size_t *len)
 {
@@ -123,9 +103,9 @@ int cmd_plot(int argc, char **argv)
     memset(&o, 0, sizeof o);
     for (int i = 1; i < argc; i++) {
         int bad = 0;
-        if (take(argc, argv, &i, "--x", &o.x, &bad) || take(argc, argv, &i, "--y", &o.y, &bad)
-            || take(argc, argv, &i, "--out", &o.out, &bad) || take(argc, argv, &i, "--particle", &o.particle, &bad)
-            || take(argc, argv, &i, "--size", &o.size, &bad) || take(argc, argv, &i, "--title", &o.title, &bad)) {
+        if (cli_take(argc, argv, &i, "--x", &o.x, &bad) || cli_take(argc, argv, &i, "--y", &o.y, &bad)
+            || cli_take(argc, argv, &i, "--out", &o.out, &bad) || cli_take(argc, argv, &i, "--particle", &o.particle, &bad)
+            || cli_take(argc, argv, &i, "--size", &o.size, &bad) || cli_take(argc, argv, &i, "--title", &o.title, &bad)) {
             if (bad)
                 return EXIT_BAD_INPUT;
         } else if (argv[i][0] == '-' && argv[i][1] != '\0') {

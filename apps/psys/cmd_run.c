@@ -63,26 +63,6 @@ static double now_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* "--name VALUE" or "--name=VALUE"; returns 1 if argv[*i] is this option. */
-static int take(int argc, char **argv, int *i, const char *name, const char **val, int *bad)
-{
-    size_t n = strlen(name);
-    if (strncmp(argv[*i], name, n) != 0)
-        return 0;
-    if (argv[*i][n] == '=') {
-        *val = argv[*i] + n + 1;
-        return 1;
-    }
-    if (argv[*i][n] != '\0')
-        return 0;
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value (see psys --help)", name);
-        *bad = 1;
-        return 1;
-    }
-    *val = argv[++*i];
-    return 1;
-}
 
 static int parse_args(int argc, char **argv, run_opts *o)
 {
@@ -90,19 +70,19 @@ static int parse_args(int argc, char **argv, run_opts *o)
     for (int i = 1; i < argc; i++) {
         int bad = 0;
         const char *a = argv[i];
-        if (take(argc, argv, &i, "--dt", &o->dt, &bad) || take(argc, argv, &i, "--steps", &o->steps, &bad)
-            || take(argc, argv, &i, "--duration", &o->duration, &bad)
-            || take(argc, argv, &i, "--integrator", &o->integrator, &bad)
-            || take(argc, argv, &i, "--every", &o->every, &bad) || take(argc, argv, &i, "--out", &o->out, &bad)
-            || take(argc, argv, &i, "--energy", &o->energy, &bad)
-            || take(argc, argv, &i, "--render", &o->render, &bad)
-            || take(argc, argv, &i, "--threads", &o->threads, &bad)
-            || take(argc, argv, &i, "--checkpoint", &o->checkpoint, &bad)
-            || take(argc, argv, &i, "--resume", &o->resume, &bad)
-            || take(argc, argv, &i, "--size", &o->size, &bad) || take(argc, argv, &i, "--fps", &o->fps, &bad)
-            || take(argc, argv, &i, "--camera", &o->camera, &bad)
-            || take(argc, argv, &i, "--radius", &o->radius, &bad)
-            || take(argc, argv, &i, "--plot", &o->plot, &bad)) {
+        if (cli_take(argc, argv, &i, "--dt", &o->dt, &bad) || cli_take(argc, argv, &i, "--steps", &o->steps, &bad)
+            || cli_take(argc, argv, &i, "--duration", &o->duration, &bad)
+            || cli_take(argc, argv, &i, "--integrator", &o->integrator, &bad)
+            || cli_take(argc, argv, &i, "--every", &o->every, &bad) || cli_take(argc, argv, &i, "--out", &o->out, &bad)
+            || cli_take(argc, argv, &i, "--energy", &o->energy, &bad)
+            || cli_take(argc, argv, &i, "--render", &o->render, &bad)
+            || cli_take(argc, argv, &i, "--threads", &o->threads, &bad)
+            || cli_take(argc, argv, &i, "--checkpoint", &o->checkpoint, &bad)
+            || cli_take(argc, argv, &i, "--resume", &o->resume, &bad)
+            || cli_take(argc, argv, &i, "--size", &o->size, &bad) || cli_take(argc, argv, &i, "--fps", &o->fps, &bad)
+            || cli_take(argc, argv, &i, "--camera", &o->camera, &bad)
+            || cli_take(argc, argv, &i, "--radius", &o->radius, &bad)
+            || cli_take(argc, argv, &i, "--plot", &o->plot, &bad)) {
             if (bad)
                 return -1;
         } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {

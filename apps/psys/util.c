@@ -166,3 +166,24 @@ int parse_int(const char *s, long long min, long long max, long long *out)
     *out = v;
     return 0;
 }
+
+/* "--name VALUE" or "--name=VALUE"; returns 1 if argv[*i] is this option. */
+int cli_take(int argc, char **argv, int *i, const char *name, const char **val, int *bad)
+{
+    size_t n = strlen(name);
+    if (strncmp(argv[*i], name, n) != 0)
+        return 0;
+    if (argv[*i][n] == '=') {
+        *val = argv[*i] + n + 1;
+        return 1;
+    }
+    if (argv[*i][n] != '\0')
+        return 0;
+    if (*i + 1 >= argc) {
+        cli_error("%s needs a value (see psys --help)", name);
+        *bad = 1;
+        return 1;
+    }
+    *val = argv[++*i];
+    return 1;
+}
