@@ -117,12 +117,35 @@ static inline void sym_mul_b(const level *L, const double *restrict x, double *r
     }
 }
 
+/* t_j += A_ijᵀ x_i for the stored blocks (i, j > i) of row i: the lower
+ * triangle's contribution of x_i, which Gauss–Seidel sums in both directions. */
+static inline void scatter_lower(const level *L, size_t i, const double *xi, double *t, const int B)
+{
+    for (size_t e = L->row[i] + 1; e < L->row[i + 1]; e++) {
+        const double *blk = L->val + e * (size_t)(B * B);
+        double *tj = t + L->col[e] * B;
+        for (int r = 0; r < B; r++)
+            for (int c = 0; c < B; c++)
+                tj[c] += blk[r * B + c] * xi[r];
+    }
+}
+
+/* out = D s for one B×B block D. */
+static inline void block_apply(const double *D, const double *s, double *out, const int B)
+{
+    for (int r = 0; r < B; r++) {
+        double v = 0;
+        for (int c = 0; c < B; c++)
+            v += D[r * B + c] * s[c];
+        out[r] = v;
+    }
+}
+
 /* Forward block Gauss–Seidel from x = 0: x_i = D_i⁻¹ (b_i - Σ_{j<i} A_ij x_j);
  * the lower sums are scattered from the upper blocks into t as rows finish. */
 static inline void forward_gs_b(const level *L, const int B)
 {
-    const size_t *restrict row = L->row, *restrict col = L->col;
-    const double *restrict val = L->val, *restrict dinv = L->dinv, *restrict b = L->b;
+    const double *restrict dinv = L->dinv, *restrict b = L->b;
     double *restrict x = L->x, *restrict t = L->t;
     size_t n = L->nb * (size_t)B;
     for (size_t k = 0; k < n; k++)
@@ -132,19 +155,8 @@ static inline void forward_gs_b(const level *L, const int B)
         const double *di = dinv + i * (size_t)(B * B);
         for (int r = 0; r < B; r++)
             s[r] = b[i * B + r] - t[i * B + r];
-        for (int r = 0; r < B; r++) {
-            double v = 0;
-            for (int c = 0; c < B; c++)
-                v += di[r * B + c] * s[c];
-            xi[r] = v;
-        }
-        for (size_t e = row[i] + 1; e < row[i + 1]; e++) {
-            const double *blk = val + e * (size_t)(B * B);
-            double *tj = t + col[e] * B;
-            for (int r = 0; r < B; r++)
-                for (int c = 0; c < B; c++)
-                    tj[c] += blk[r * B + c] * xi[r];
-        }
+        block_apply(di, s, xi, B);
+        scatter_lower(L, i, xi, t, B);
     }
 }
 
@@ -161,13 +173,7 @@ static inline void backward_gs_b(const level *L, const int B)
         t[k] = 0.0;
     for (size_t i = 0; i < L->nb; i++) {
         const double *xi = x + i * B;
-        for (size_t e = row[i] + 1; e < row[i + 1]; e++) {
-            const double *blk = val + e * (size_t)(B * B);
-            double *tj = t + col[e] * B;
-            for (int r = 0; r < B; r++)
-                for (int c = 0; c < B; c++)
-                    tj[c] += blk[r * B + c] * xi[r];
-        }
+        scatter_lower(L, i, xi, t, B);
     }
     for (size_t i = L->nb; i-- > 0;) {
         double s[3];
@@ -181,12 +187,7 @@ static inline void backward_gs_b(const level *L, const int B)
         }
         const double *di = dinv + i * (size_t)(B * B);
         double *xi = x + i * B;
-        for (int r = 0; r < B; r++) {
-            double v = 0;
-            for (int c = 0; c < B; c++)
-                v += di[r * B + c] * s[c];
-            xi[r] = v;
-        }
+        block_apply(di, s, xi, B);
     }
 }
 

@@ -1,1 +1,1 @@
-psys_c_test(test_amg vcycle_is_spd small_system_exact fewer_iterations)
+psys_c_test(test_amg vcycle_is_spd small_system_exact fewer_iterations stalled_coarsening_gauss_seidel)
