@@ -57,4 +57,7 @@ int cmd_import(int argc, char **argv);
  * value is missing), 0 if not. */
 int cli_take(int argc, char **argv, int *i, const char *name, const char **val, int *bad);
 
+/* 0 if name is a known solver; else -1, having printed the --integrator error. */
+int cli_check_integrator(const char *name);
+
 #endif

@@ -116,14 +116,8 @@ static int check_values(const import_opts *o, import_values *v)
         return -1;
     }
     if (o->integrator) {
-        if (!psys_solver_exists(o->integrator)) {
-            char known[256] = "";
-            for (size_t i = 0; psys_solver_name_at(i); i++)
-                snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", i ? ", " : "",
-                         psys_solver_name_at(i));
-            cli_error("--integrator: unknown integrator (got %s; known: %s)", o->integrator, known);
+        if (cli_check_integrator(o->integrator) != 0)
             return -1;
-        }
         v->integrator = o->integrator;
     }
     return 0;

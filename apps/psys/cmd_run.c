@@ -122,14 +122,8 @@ static int apply_flags(const run_opts *o, psys_settings *set, int dim, picture_o
     long long n;
     double x;
     if (o->integrator) {
-        if (!psys_solver_exists(o->integrator)) {
-            char known[256] = "";
-            for (size_t i = 0; psys_solver_name_at(i); i++)
-                snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", i ? ", " : "",
-                         psys_solver_name_at(i));
-            cli_error("--integrator: unknown integrator (got %s; known: %s)", o->integrator, known);
+        if (cli_check_integrator(o->integrator) != 0)
             return -1;
-        }
         snprintf(set->integrator, sizeof set->integrator, "%s", o->integrator);
     }
     if (o->dt) {

@@ -187,3 +187,15 @@ int cli_take(int argc, char **argv, int *i, const char *name, const char **val, 
     *val = argv[++*i];
     return 1;
 }
+
+/* 0 if name is a known solver; else -1 with the --integrator message. */
+int cli_check_integrator(const char *name)
+{
+    if (psys_solver_exists(name))
+        return 0;
+    char known[256] = "";
+    for (size_t i = 0; psys_solver_name_at(i); i++)
+        snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", i ? ", " : "", psys_solver_name_at(i));
+    cli_error("--integrator: unknown integrator (got %s; known: %s)", name, known);
+    return -1;
+}
