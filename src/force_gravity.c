@@ -11,10 +11,23 @@ typedef struct gravity {
 static void gravity_apply(void *data, const psys_force_eval *e, double *f)
 {
     const gravity *gr = data;
-    int d = e->dim;
-    for (size_t i = 0; i < e->n; i++)
-        for (int k = 0; k < d; k++)
-            f[i * d + k] += e->mass[i] * gr->g[k];
+    const double *restrict m = e->mass;
+    double *restrict fo = f;
+    /* One loop per dimension so the compiler sees the stride and vectorises. */
+    if (e->dim == 2) {
+        const double g0 = gr->g[0], g1 = gr->g[1];
+        for (size_t i = 0; i < e->n; i++) {
+            fo[2 * i] += m[i] * g0;
+            fo[2 * i + 1] += m[i] * g1;
+        }
+    } else {
+        const double g0 = gr->g[0], g1 = gr->g[1], g2 = gr->g[2];
+        for (size_t i = 0; i < e->n; i++) {
+            fo[3 * i] += m[i] * g0;
+            fo[3 * i + 1] += m[i] * g1;
+            fo[3 * i + 2] += m[i] * g2;
+        }
+    }
 }
 
 /* U = -Σ m g·x over free particles (fixed ones cannot exchange energy). */

@@ -58,6 +58,12 @@ typedef struct springs {
     int part_t;   /* T of the cached partition, 0 = none */
     bool part_ok; /* false: the ranges overlap too much to pay, run serially */
     size_t rlo[SPRING_MAX_THREADS], rhi[SPRING_MAX_THREADS];
+    /* Structure-of-arrays copies of x, v and f (springs_apply): component c
+     * of particle i at soa[(q·dim + c)·soa_cap + i], q = 0 x, 1 v, 2 f, so
+     * the run loop reads and writes whole vectors with no shuffles. Sized at
+     * psys__springs_prepare for the owner's particle count. */
+    double *soa;
+    size_t soa_cap;
 } springs;
 
 static void plan_free(springs *s)
@@ -94,6 +100,7 @@ static void springs_destroy(void *data)
     free(s->momega);
     free(s->mphase);
     plan_free(s);
+    free(s->soa);
     free(s);
 }
 
@@ -277,42 +284,53 @@ void psys__springs_truncate(void *set, size_t n)
  * thread count. A spring with a > b is the same spring seen from b: l and
  * l̇ change sign, l·l̇ and |l| do not, so its force is the same to the bit. */
 
-/* Forces of run springs j < len into F (dim × len, particle-major):
+/* Forces of run springs j < len into F (component-major: F[c·SPRING_BLOCK + j]):
  *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
+ * X, V: the SoA position and velocity components (stride cap), lo and hi
+ * the runs' first particles at the two ends.
  * A spring of zero length has no direction and exerts no force. */
-static inline void run_forces_d(const double *restrict xa, const double *restrict xb, const double *restrict va,
-                                const double *restrict vb, const double *restrict ks, const double *restrict kd,
+static inline void run_forces_d(const double *restrict X, const double *restrict V, size_t cap, size_t lo,
+                                size_t hi, const double *restrict ks, const double *restrict kd,
                                 const double *restrict rest, size_t len, double *restrict F, const int d)
 {
+    const double *restrict xa0 = X + lo, *restrict xb0 = X + hi, *restrict va0 = V + lo, *restrict vb0 = V + hi;
+    const double *restrict xa1 = X + cap + lo, *restrict xb1 = X + cap + hi;
+    const double *restrict va1 = V + cap + lo, *restrict vb1 = V + cap + hi;
+    const double *restrict xa2 = X + 2 * cap + lo, *restrict xb2 = X + 2 * cap + hi;
+    const double *restrict va2 = V + 2 * cap + lo, *restrict vb2 = V + 2 * cap + hi;
+    double *restrict F0 = F, *restrict F1 = F + SPRING_BLOCK, *restrict F2 = F + 2 * SPRING_BLOCK;
     for (size_t j = 0; j < len; j++) {
-        double l0 = xa[j * d] - xb[j * d], l1 = xa[j * d + 1] - xb[j * d + 1];
-        double d0 = va[j * d] - vb[j * d], d1 = va[j * d + 1] - vb[j * d + 1];
+        double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j];
+        double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j];
         double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1, l2 = 0;
         if (d == 3) {
-            l2 = xa[j * d + 2] - xb[j * d + 2];
-            double d2 = va[j * d + 2] - vb[j * d + 2];
+            l2 = xa2[j] - xb2[j];
+            double d2 = va2[j] - vb2[j];
             len2 = len2 + l2 * l2;
             dot = dot + d2 * l2;
         }
         double L = sqrt(len2), inv = 1.0 / L;
         double mag = (ks[j] * (L - rest[j]) + kd[j] * dot * inv) * inv;
         mag = len2 == 0 ? 0.0 : mag;
-        F[j * d] = mag * l0;
-        F[j * d + 1] = mag * l1;
+        F0[j] = mag * l0;
+        F1[j] = mag * l1;
         if (d == 3)
-            F[j * d + 2] = mag * l2;
+            F2[j] = mag * l2;
     }
 }
 
-/* Runs r0..r1-1 into f; with `owned`, only the ends in particles [P, Q). */
+/* Runs r0..r1-1 into the SoA forces Fs; with `owned`, only the ends in
+ * particles [P, Q). Per particle and component the contributions arrive in
+ * plan order: run by run, in a run the first end before the second. */
 #if defined(__GNUC__)
 __attribute__((always_inline)) /* into each clone of springs_runs below */
 #endif
-static inline void springs_runs_d(const springs *s, const psys_force_eval *e, double *restrict f, size_t r0,
-                                  size_t r1, size_t P, size_t Q, const int d, const bool owned)
+static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t r0, size_t r1, size_t P, size_t Q,
+                                  const int d, const bool owned)
 {
     double F[3 * SPRING_BLOCK];
-    const double *x = e->x, *v = e->v;
+    const size_t cap = s->soa_cap;
+    const double *X = s->soa, *V = s->soa + (size_t)d * cap;
     for (size_t r = r0; r < r1; r++) {
         const size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r], k = s->run_k[r];
         size_t a0 = 0, a1 = len, b0 = 0, b1 = len; /* j ranges written at the lo and hi ends */
@@ -324,35 +342,86 @@ static inline void springs_runs_d(const springs *s, const psys_force_eval *e, do
             if (a0 >= a1 && b0 >= b1)
                 continue;
         }
-        run_forces_d(x + lo * d, x + hi * d, v + lo * d, v + hi * d, s->pks + k, s->pkd + k, s->prest + k, len, F, d);
-        double *restrict fa = f + lo * d, *restrict fb = f + hi * d;
-        for (size_t i = a0 * d; i < a1 * d; i++)
-            fa[i] -= F[i];
-        for (size_t i = b0 * d; i < b1 * d; i++)
-            fb[i] += F[i];
+        run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, d);
+        for (int c = 0; c < d; c++) {
+            double *restrict fa = Fs + c * cap + lo, *restrict fb = Fs + c * cap + hi;
+            const double *restrict Fc = F + c * SPRING_BLOCK;
+            for (size_t j = a0; j < a1; j++)
+                fa[j] -= Fc[j];
+            for (size_t j = b0; j < b1; j++)
+                fb[j] += Fc[j];
+        }
     }
 }
 
-/* On x86-64 with GCC, also an AVX2 build of the loop, chosen at load time
- * when the CPU has it (4 doubles per instruction instead of 2). The same
- * operations in the same order (no FMA: -ffp-contract=off; sqrt and
- * division are correctly rounded at every width), so the same bits. */
+/* On x86-64 with GCC, also AVX2 and AVX-512 builds of the loop, chosen at
+ * load time by what the CPU has (4 or 8 doubles per instruction instead of
+ * 2). The same operations in the same order (no FMA: -ffp-contract=off;
+ * sqrt and division are correctly rounded at every width), so the same bits. */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-__attribute__((target_clones("avx2", "default")))
+#define SPRING_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define SPRING_CLONES
 #endif
-static void springs_runs(const springs *s, const psys_force_eval *e, double *f, size_t r0, size_t r1, size_t P,
-                         size_t Q, bool owned)
+SPRING_CLONES
+static void springs_runs(const springs *s, int dim, double *Fs, size_t r0, size_t r1, size_t P, size_t Q, bool owned)
 {
-    if (e->dim == 2) {
+    if (dim == 2) {
         if (owned)
-            springs_runs_d(s, e, f, r0, r1, P, Q, 2, true);
+            springs_runs_d(s, Fs, r0, r1, P, Q, 2, true);
         else
-            springs_runs_d(s, e, f, r0, r1, 0, 0, 2, false);
+            springs_runs_d(s, Fs, r0, r1, 0, 0, 2, false);
     } else {
         if (owned)
-            springs_runs_d(s, e, f, r0, r1, P, Q, 3, true);
+            springs_runs_d(s, Fs, r0, r1, P, Q, 3, true);
         else
-            springs_runs_d(s, e, f, r0, r1, 0, 0, 3, false);
+            springs_runs_d(s, Fs, r0, r1, 0, 0, 3, false);
+    }
+}
+
+/* Particles [P, Q) of x, v and f into the SoA scratch (component-major). */
+SPRING_CLONES
+static void soa_gather(springs *s, const psys_force_eval *e, const double *f, size_t P, size_t Q)
+{
+    const int d = e->dim;
+    const size_t cap = s->soa_cap;
+    const double *src[3] = {e->x, e->v, f};
+    for (int q = 0; q < 3; q++) {
+        const double *restrict a = src[q];
+        double *restrict c0 = s->soa + (size_t)(q * d) * cap, *restrict c1 = c0 + cap, *restrict c2 = c1 + cap;
+        if (d == 2) {
+            for (size_t i = P; i < Q; i++) {
+                c0[i] = a[2 * i];
+                c1[i] = a[2 * i + 1];
+            }
+        } else {
+            for (size_t i = P; i < Q; i++) {
+                c0[i] = a[3 * i];
+                c1[i] = a[3 * i + 1];
+                c2[i] = a[3 * i + 2];
+            }
+        }
+    }
+}
+
+/* Particles [P, Q) of the SoA forces back into f (particle-major). */
+SPRING_CLONES
+static void soa_scatter(const springs *s, int d, double *f, size_t P, size_t Q)
+{
+    const size_t cap = s->soa_cap;
+    const double *restrict c0 = s->soa + (size_t)(2 * d) * cap, *restrict c1 = c0 + cap, *restrict c2 = c1 + cap;
+    double *restrict a = f;
+    if (d == 2) {
+        for (size_t i = P; i < Q; i++) {
+            a[2 * i] = c0[i];
+            a[2 * i + 1] = c1[i];
+        }
+    } else {
+        for (size_t i = P; i < Q; i++) {
+            a[3 * i] = c0[i];
+            a[3 * i + 1] = c1[i];
+            a[3 * i + 2] = c2[i];
+        }
     }
 }
 
@@ -458,7 +527,27 @@ static psys_status springs_plan(springs *s)
     return PSYS_OK;
 }
 
-psys_status psys__springs_prepare(void *set) { return springs_plan(set); }
+/* The plan, and SoA scratch for the owner's particles (9 doubles each). */
+psys_status psys__springs_prepare(void *set)
+{
+    springs *s = set;
+    psys_status st = springs_plan(s);
+    if (st != PSYS_OK)
+        return st;
+    size_t np = s->owner ? s->owner->n : 0;
+    if (np > s->soa_cap) {
+        size_t cap = np + np / 8;
+        if (cap > SIZE_MAX / (9 * sizeof(double)))
+            return PSYS_ERR_NOMEM;
+        double *soa = psys__calloc(cap * 9, sizeof(double));
+        if (!soa)
+            return PSYS_ERR_NOMEM;
+        free(s->soa);
+        s->soa = soa;
+        s->soa_cap = cap;
+    }
+    return PSYS_OK;
+}
 
 /* First particle of thread t's share of np particles among T. */
 static size_t part_first(size_t np, int T, int t) { return (size_t)(((uint64_t)t * np + (uint64_t)T - 1) / (uint64_t)T); }
@@ -518,7 +607,7 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
 {
     springs *s = data;
     const double *rest = rest_at(s, e->t);
-    if (springs_plan(s) != PSYS_OK) {
+    if (springs_plan(s) != PSYS_OK || e->n > s->soa_cap) {
         springs_plain(s, e, rest, f);
         return;
     }
@@ -530,16 +619,27 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
         if (!s->part_ok)
             T = 1;
     }
+    double *Fs = s->soa + (size_t)(2 * e->dim) * s->soa_cap;
     if (T <= 1) {
-        springs_runs(s, e, f, 0, s->nruns, 0, 0, false);
+        soa_gather(s, e, f, 0, e->n);
+        springs_runs(s, e->dim, Fs, 0, s->nruns, 0, 0, false);
+        soa_scatter(s, e->dim, f, 0, e->n);
         return;
     }
 #ifdef _OPENMP
+    /* Thread t gathers and scatters its own particles; every thread reads
+     * all positions and velocities, hence the barrier after the gather. */
 #pragma omp parallel num_threads(T)
     {
         int nth = omp_get_num_threads(), me = omp_get_thread_num();
         for (int t = me; t < T; t += nth)
-            springs_runs(s, e, f, s->rlo[t], s->rhi[t], part_first(e->n, T, t), part_first(e->n, T, t + 1), true);
+            soa_gather(s, e, f, part_first(e->n, T, t), part_first(e->n, T, t + 1));
+#pragma omp barrier
+        for (int t = me; t < T; t += nth) {
+            size_t P = part_first(e->n, T, t), Q = part_first(e->n, T, t + 1);
+            springs_runs(s, e->dim, Fs, s->rlo[t], s->rhi[t], P, Q, true);
+            soa_scatter(s, e->dim, f, P, Q);
+        }
     }
 #endif
 }
