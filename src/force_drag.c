@@ -12,8 +12,11 @@ static void drag_apply(void *data, const psys_force_eval *e, double *f)
 {
     double kd = ((const drag *)data)->kd;
     size_t nd = e->n * (size_t)e->dim;
+    const double *restrict v = e->v;
+    double *restrict fo = f;
+    PSYS_PAR_FOR(e->threads, nd)
     for (size_t i = 0; i < nd; i++)
-        f[i] -= kd * e->v[i];
+        fo[i] -= kd * v[i];
 }
 
 static void drag_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J)

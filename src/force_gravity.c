@@ -16,12 +16,14 @@ static void gravity_apply(void *data, const psys_force_eval *e, double *f)
     /* One loop per dimension so the compiler sees the stride and vectorises. */
     if (e->dim == 2) {
         const double g0 = gr->g[0], g1 = gr->g[1];
+        PSYS_PAR_FOR(e->threads, 2 * e->n)
         for (size_t i = 0; i < e->n; i++) {
             fo[2 * i] += m[i] * g0;
             fo[2 * i + 1] += m[i] * g1;
         }
     } else {
         const double g0 = gr->g[0], g1 = gr->g[1], g2 = gr->g[2];
+        PSYS_PAR_FOR(e->threads, 3 * e->n)
         for (size_t i = 0; i < e->n; i++) {
             fo[3 * i] += m[i] * g0;
             fo[3 * i + 1] += m[i] * g1;

@@ -7,6 +7,20 @@
 #include <stdarg.h>
 #include <stdint.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#define PSYS_PRAGMA(x) _Pragma(#x)
+#define PSYS_OMP(x) PSYS_PRAGMA(x)
+#else
+#define PSYS_OMP(x)
+#endif
+
+/* Elementwise passes over at least this many numbers run on the caller's
+ * threads (static schedule: each element computed alone, so the same bits
+ * for every thread count); shorter ones are not worth a parallel region. */
+#define PSYS_PAR_MIN 65536
+#define PSYS_PAR_FOR(nt, len) PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if ((nt) > 1 && (len) >= PSYS_PAR_MIN))
+
 struct cJSON;
 
 /** Fill err (may be NULL) with code and a printf-style message; returns code. */

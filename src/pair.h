@@ -21,13 +21,6 @@
 #include <math.h>
 #include <stdint.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#define PSYS_PRAGMA(x) _Pragma(#x)
-#define PSYS_OMP(x) PSYS_PRAGMA(x)
-#else
-#define PSYS_OMP(x)
-#endif
 
 #if defined(__GNUC__)
 #define PAIR_INLINE static inline __attribute__((always_inline))

@@ -136,15 +136,27 @@ psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)
     return PSYS_OK;
 }
 
+int psys__solver_threads(const psys_solver *s)
+{
+    int nt = s->ode.threads ? s->ode.threads(s->ode.ctx) : 1;
+    return nt < 1 ? 1 : nt;
+}
+
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
 {
     if (s->ode.project)
         s->ode.project(s->ode.ctx, t1, y1);
+    /* The first non-finite component, whatever the thread count. */
+    size_t bad = SIZE_MAX;
+    const int nt = psys__solver_threads(s);
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && s->n >= PSYS_PAR_MIN) reduction(min: bad))
     for (size_t i = 0; i < s->n; i++)
-        if (!isfinite(y1[i])) {
-            s->bad = i;
-            return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", i);
-        }
+        if (!isfinite(y1[i]) && i < bad)
+            bad = i;
+    if (bad != SIZE_MAX) {
+        s->bad = bad;
+        return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);
+    }
     s->ode.set_state(s->ode.ctx, y1);
     s->ode.set_time(s->ode.ctx, t1);
     return PSYS_OK;

@@ -50,6 +50,8 @@ struct psys__solver_class {
 extern const psys__solver_class psys__euler, psys__midpoint, psys__rk4, psys__rk45;
 extern const psys__solver_class psys__symplectic_euler, psys__verlet, psys__implicit_euler;
 
+/** Threads for the solver's elementwise passes (ode.threads, at least 1). */
+int psys__solver_threads(const psys_solver *s);
 /** Project y1 at t1, check it is finite, then set_state(y1) and set_time(t1). */
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);
 /** Evaluate the derivative at (t, y) after projecting prescribed components. */

@@ -40,7 +40,7 @@ static const psys__tableau dopri5_tab = {
 
 /* out = base + h * Σ w[j] k[j] over the nonzero weights only, so rk4's
  * one-term stages are a single fused pass over memory. */
-static void combine(size_t n, double *out, const double *base, double h, const double *w, int count,
+static void combine(int nt, size_t n, double *out, const double *base, double h, const double *w, int count,
                     double *const *k)
 {
     int idx[7], m = 0;
@@ -52,9 +52,11 @@ static void combine(size_t n, double *out, const double *base, double h, const d
             memcpy(out, base, n * sizeof(double));
     } else if (m == 1) {
         const double w0 = w[idx[0]], *k0 = k[idx[0]];
+        PSYS_PAR_FOR(nt, n)
         for (size_t i = 0; i < n; i++)
             out[i] = base[i] + h * (w0 * k0[i]);
     } else {
+        PSYS_PAR_FOR(nt, n)
         for (size_t i = 0; i < n; i++) {
             double acc = 0;
             for (int j = 0; j < m; j++)
@@ -72,13 +74,13 @@ static psys_status rk_stages(psys_solver *s, const psys__tableau *tab, double t,
         double *yi = y0;
         if (i > 0) {
             yi = s->buf[YTMP];
-            combine(s->n, yi, y0, h, tab->a[i], i, k);
+            combine(psys__solver_threads(s), s->n, yi, y0, h, tab->a[i], i, k);
         }
         psys_status st = psys__solver_eval(s, t + tab->c[i] * h, yi, k[i]);
         if (st != PSYS_OK)
             return st;
     }
-    combine(s->n, y1, y0, h, tab->b, tab->stages, k);
+    combine(psys__solver_threads(s), s->n, y1, y0, h, tab->b, tab->stages, k);
     return PSYS_OK;
 }
 
@@ -102,6 +104,7 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
                                    double *y1)
 {
     const size_t n = s->n;
+    const int nt = psys__solver_threads(s);
     double *restrict k = s->buf[K0], *restrict yt = s->buf[YTMP], *restrict acc = y1;
     const double *restrict base = y0;
     int nw = 0, last = -1;
@@ -123,17 +126,54 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
         /* role 0: no weight; 1: the only weight; 2: first; 3: middle; 4: last */
         if (next) {
             switch (role) {
-            case 0: for (size_t j = 0; j < n; j++) yt[j] = base[j] + h * (an * k[j]); break;
-            case 1: for (size_t j = 0; j < n; j++) { acc[j] = base[j] + h * (w * k[j]); yt[j] = base[j] + h * (an * k[j]); } break;
-            case 2: for (size_t j = 0; j < n; j++) { acc[j] = 0.0 + w * k[j]; yt[j] = base[j] + h * (an * k[j]); } break;
-            default: for (size_t j = 0; j < n; j++) { acc[j] = acc[j] + w * k[j]; yt[j] = base[j] + h * (an * k[j]); } break;
+            case 0:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++)
+                    yt[j] = base[j] + h * (an * k[j]);
+                break;
+            case 1:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++) {
+                    acc[j] = base[j] + h * (w * k[j]);
+                    yt[j] = base[j] + h * (an * k[j]);
+                }
+                break;
+            case 2:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++) {
+                    acc[j] = 0.0 + w * k[j];
+                    yt[j] = base[j] + h * (an * k[j]);
+                }
+                break;
+            default:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++) {
+                    acc[j] = acc[j] + w * k[j];
+                    yt[j] = base[j] + h * (an * k[j]);
+                }
+                break;
             }
         } else {
             switch (role) {
-            case 0: if (nw == 0) memcpy(acc, base, n * sizeof(double)); break;
-            case 1: for (size_t j = 0; j < n; j++) acc[j] = base[j] + h * (w * k[j]); break;
-            case 2: for (size_t j = 0; j < n; j++) acc[j] = base[j] + h * (0.0 + w * k[j]); break;
-            default: for (size_t j = 0; j < n; j++) acc[j] = base[j] + h * (acc[j] + w * k[j]); break;
+            case 0:
+                if (nw == 0)
+                    memcpy(acc, base, n * sizeof(double));
+                break;
+            case 1:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++)
+                    acc[j] = base[j] + h * (w * k[j]);
+                break;
+            case 2:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++)
+                    acc[j] = base[j] + h * (0.0 + w * k[j]);
+                break;
+            default:
+                PSYS_PAR_FOR(nt, n)
+                for (size_t j = 0; j < n; j++)
+                    acc[j] = base[j] + h * (acc[j] + w * k[j]);
+                break;
             }
         }
     }

@@ -17,6 +17,8 @@ static psys_status symplectic_euler_step(psys_solver *s, double h, double *h_tak
     if (st != PSYS_OK)
         return st;
     const double *a = ydot + np;
+    const int nt = psys__solver_threads(s);
+    PSYS_PAR_FOR(nt, np)
     for (size_t i = 0; i < np; i++) {
         double v1 = y0[np + i] + h * a[i];
         y1[np + i] = v1;
@@ -39,6 +41,8 @@ static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
     psys_status st = psys__solver_eval(s, t, y0, ydot);
     if (st != PSYS_OK)
         return st;
+    const int nt = psys__solver_threads(s);
+    PSYS_PAR_FOR(nt, np)
     for (size_t i = 0; i < np; i++) {
         double vh = y0[np + i] + hh * ydot[np + i];
         y1[np + i] = vh;
@@ -48,6 +52,7 @@ static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
     }
     if ((st = psys__solver_eval(s, t + h, ypred, ydot)) != PSYS_OK)
         return st;
+    PSYS_PAR_FOR(nt, np)
     for (size_t i = 0; i < np; i++)
         y1[np + i] += hh * ydot[np + i];
     *h_taken = h;

@@ -369,7 +369,24 @@ void psys__sys_eval(const psys_system *s, double t, const double *x, const doubl
     e->mass = s->mass;
     e->inv_mass = s->inv_mass;
     e->flags = s->flags;
+    e->threads = psys_system_effective_threads(s);
 }
+
+/* dst = src, n doubles, split among nt threads. */
+static void par_copy(int nt, double *restrict dst, const double *restrict src, size_t n)
+{
+    if (nt <= 1 || n < PSYS_PAR_MIN) {
+        memcpy(dst, src, n * sizeof(double));
+        return;
+    }
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt))
+    for (int t = 0; t < nt; t++) {
+        size_t a = n * (size_t)t / (size_t)nt, b = n * (size_t)(t + 1) / (size_t)nt;
+        memcpy(dst + a, src + a, (b - a) * sizeof(double));
+    }
+}
+
+static int ode_threads(void *ctx) { return psys_system_effective_threads(ctx); }
 
 /* Clear f, let every force object add into it, then the planes' contact
  * forces, which depend on the total applied force (notes §7.3). With MPI
@@ -380,8 +397,11 @@ static psys_status accumulate(const psys_system *s, const psys_force_eval *e, do
 #ifdef PSYS_MPI
     bool split = s->dist && psys__dist_begin(s, e->x);
 #endif
-    if (s->n) /* f may be NULL with no particles */
-        memset(f, 0, sizeof(double) * s->n * (size_t)s->dim);
+    const size_t nd = s->n * (size_t)s->dim;
+    const int nt = e->threads;
+    PSYS_PAR_FOR(nt, nd)
+    for (size_t i = 0; i < nd; i++)
+        f[i] = 0.0;
     for (size_t i = 0; i < s->nforces; i++)
         s->forces[i].cls->apply(s->forces[i].data, e, f);
 #ifdef PSYS_MPI
@@ -401,8 +421,9 @@ static void ode_get_state(void *ctx, double *y)
     size_t nd = s->n * (size_t)s->dim;
     if (nd == 0) /* no particles: s->x may be NULL, and memcpy(_, NULL, 0) is undefined */
         return;
-    memcpy(y, s->x, nd * sizeof(double));
-    memcpy(y + nd, s->v, nd * sizeof(double));
+    int nt = psys_system_effective_threads(s);
+    par_copy(nt, y, s->x, nd);
+    par_copy(nt, y + nd, s->v, nd);
 }
 
 static void ode_set_state(void *ctx, const double *y)
@@ -411,8 +432,9 @@ static void ode_set_state(void *ctx, const double *y)
     size_t nd = s->n * (size_t)s->dim;
     if (nd == 0)
         return;
-    memcpy(s->x, y, nd * sizeof(double));
-    memcpy(s->v, y + nd, nd * sizeof(double));
+    int nt = psys_system_effective_threads(s);
+    par_copy(nt, s->x, y, nd);
+    par_copy(nt, s->v, y + nd, nd);
 }
 
 /* Controlled particles take their prescribed state at the stage time. */
@@ -442,19 +464,23 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     if (accumulate(s, &e, s->f) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_INVALID, "MPI exchange of the forces failed");
-    memcpy(ydot, y + nd, nd * sizeof(double));
+    const int nt = e.threads;
+    if (nd)
+        par_copy(nt, ydot, y + nd, nd);
     double *restrict a = ydot + nd;
     const double *restrict f = s->f, *restrict im = s->inv_mass;
     /* Not-free particles get exactly 0, even when their force overflowed
      * (inf·0 would be NaN and blame an anchor for a free particle's blow-up).
      * One loop per dimension so the compiler sees the stride and vectorises. */
     if (d == 2) {
+        PSYS_PAR_FOR(nt, nd)
         for (size_t i = 0; i < s->n; i++) {
             double w = im[i];
             a[2 * i] = w != 0 ? f[2 * i] * w : 0.0;
             a[2 * i + 1] = w != 0 ? f[2 * i + 1] * w : 0.0;
         }
     } else {
+        PSYS_PAR_FOR(nt, nd)
         for (size_t i = 0; i < s->n; i++) {
             double w = im[i];
             a[3 * i] = w != 0 ? f[3 * i] * w : 0.0;
@@ -502,6 +528,7 @@ psys_ode psys_system_ode(psys_system *s)
     o.mass = ode_mass;
     o.jacobian = ode_jacobian;
     o.block = s->dim;
+    o.threads = ode_threads;
     return o;
 }
 

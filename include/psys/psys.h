@@ -79,6 +79,10 @@ typedef struct psys_ode {
      *  the forces at (t, y) into J. Forces that cannot are treated explicitly. */
     psys_status (*jacobian)(void *ctx, double t, const double *y, struct psys_jacobian *J);
     int block;    /**< block size of jacobian (the dimension) */
+    /** Optional (NULL = 1): threads the solver may use for its elementwise
+     *  vector passes; results must not depend on it (they do not: each
+     *  element is computed alone). */
+    int (*threads)(void *ctx);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
@@ -159,6 +163,7 @@ typedef struct psys_force_eval {
     const double *mass;          /**< masses, n */
     const double *inv_mass;      /**< 1/mass, 0 for fixed particles, n */
     const unsigned char *flags;  /**< PSYS_PARTICLE_* flags, n */
+    int threads;                 /**< threads the force may use (>= 1); results must not depend on it */
 } psys_force_eval;
 
 /** Sink for force Jacobian blocks (see psys_jacobian_add). */
