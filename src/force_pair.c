@@ -222,6 +222,59 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
         }                                                                                                    \
     }
 
+/* Grid forces of rows [i0, i1) (all, or the marked ones) through
+ * pair_row_forces: the same bits as GRID_FN's gather. On x86-64 with GCC
+ * also built for AVX2 and AVX-512 (gathers, 4 or 8 pairs per instruction),
+ * chosen at load time; no FMA, so the same bits on every path. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define PAIR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define PAIR_CLONES
+#endif
+#define ROWS_FN(name, LAW, D)                                                                                \
+    PAIR_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, \
+                                 size_t i0, size_t i1, const unsigned char *mark, double *out)               \
+    {                                                                                                        \
+        const size_t *st = p->grid.nb_start;                                                                 \
+        const uint32_t *num = p->grid.nb_num, *nb = p->grid.nb;                                              \
+        for (size_t i = i0; i < i1; i++) {                                                                   \
+            if (mark && !mark[i])                                                                            \
+                continue;                                                                                    \
+            double acc[3] = {0, 0, 0};                                                                       \
+            pair_row_forces(p, LAW, D, m, x, w, i, nb + st[i], num[i], acc);                                 \
+            for (int k = 0; k < D; k++)                                                                      \
+                out[i * D + k] = acc[k];                                                                     \
+        }                                                                                                    \
+    }
+typedef void (*rows_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t i0,
+                        size_t i1, const unsigned char *mark, double *out);
+ROWS_FN(rows_gravity_2, PSYS_PAIR_GRAVITY, 2)
+ROWS_FN(rows_gravity_3, PSYS_PAIR_GRAVITY, 3)
+ROWS_FN(rows_coulomb_2, PSYS_PAIR_COULOMB, 2)
+ROWS_FN(rows_coulomb_3, PSYS_PAIR_COULOMB, 3)
+ROWS_FN(rows_lj_2, PSYS_PAIR_LENNARD_JONES, 2)
+ROWS_FN(rows_lj_3, PSYS_PAIR_LENNARD_JONES, 3)
+ROWS_FN(rows_soft_2, PSYS_PAIR_SOFT_REPULSION, 2)
+ROWS_FN(rows_soft_3, PSYS_PAIR_SOFT_REPULSION, 3)
+/* Indexed by law (not the user law), then [2-D, 3-D]. */
+static const rows_fn rows_fns[4][2] = {{rows_gravity_2, rows_gravity_3}, {rows_coulomb_2, rows_coulomb_3},
+                                       {rows_lj_2, rows_lj_3}, {rows_soft_2, rows_soft_3}};
+#define ROWS_CHUNK 64
+
+/* Grid forces over full lists through rows_fns, in parallel by chunks of rows. */
+static void grid_rows(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                      const unsigned char *mark, double *out, int nt)
+{
+    const rows_fn fn = rows_fns[p->law][p->dim == 3];
+    const size_t nchunks = (n + ROWS_CHUNK - 1) / ROWS_CHUNK;
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
+    for (size_t c = 0; c < nchunks; c++) {
+        size_t i0 = c * ROWS_CHUNK, i1 = i0 + ROWS_CHUNK < n ? i0 + ROWS_CHUNK : n;
+        fn(p, m, x, w, i0, i1, mark, out);
+    }
+}
+
 /* Grid method with half lists (one thread): a sweep over i in increasing
  * order evaluates each pair once and adds its force to i and its opposite
  * to j. Particle j thus receives its contributions in increasing partner
@@ -418,7 +471,10 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             p->stats.partial++;
         }
     }
-    if (compute)
+    if (compute && !g->half && p->law != PSYS_PAIR_USER
+        && (w || (p->law != PSYS_PAIR_GRAVITY && p->law != PSYS_PAIR_COULOMB)))
+        grid_rows(p, m, x, w, n, mark, g->fcache, nt);
+    else if (compute)
         fn(p, m, x, w, n, mark, g->fcache, nt);
     if (mark) {
         for (size_t t = 0; t < nc; t++) {

@@ -109,7 +109,7 @@ typedef struct pair_force {
 typedef struct pair_image {
     bool on;
     bool per[3];
-    double len[3], half[3];
+    double len[3], half[3], inv[3]; /* inv: 1/len, so images need no division */
 } pair_image;
 
 PAIR_INLINE void pair_image_of(const psys__box *b, pair_image *m)
@@ -119,15 +119,47 @@ PAIR_INLINE void pair_image_of(const psys__box *b, pair_image *m)
         m->per[k] = m->on && b->periodic[k];
         m->len[k] = b->len[k];
         m->half[k] = 0.5 * b->len[k];
+        m->inv[k] = m->per[k] ? 1.0 / b->len[k] : 1.0;
     }
 }
 
-/* x_i - x_j on one axis under the minimum image (odd in dx, so exact antisymmetry holds). */
+/* nearbyint(y) in the default rounding mode, without a call or a rounding
+ * instruction (so loops using it vectorise on any x86-64): below 2^52 in
+ * magnitude, adding and removing 2^52 rounds to the nearest integer, ties to
+ * even; from 2^52 on, y is already an integer (or inf, NaN). Odd in y. */
+PAIR_INLINE double pair_rint(double y)
+{
+    const double a = fabs(y), r = (a + 0x1p52) - 0x1p52;
+    return a < 0x1p52 ? copysign(r, y) : y;
+}
+
+/* x_i - x_j on one axis under the minimum image (odd in dx, so exact antisymmetry holds);
+ * the image index is rounded from dx·(1/len), not dx/len (no division per pair). */
 PAIR_INLINE double pair_delta(const pair_image *m, int k, double dx)
 {
     if (m->on && m->per[k] && fabs(dx) > m->half[k])
-        dx -= m->len[k] * nearbyint(dx / m->len[k]);
+        dx -= m->len[k] * pair_rint(dx * m->inv[k]);
     return dx;
+}
+
+/* pair_delta with the image's tests folded into per-axis numbers, for
+ * vectorised loops: hl[k] = half the box length on an active periodic axis,
+ * +inf otherwise (never exceeded), ln[k] the length (1 where unused). The
+ * same result as pair_delta for every dx, NaN included. */
+PAIR_INLINE void pair_image_fold(const pair_image *m, double hl[3], double ln[3], double il[3])
+{
+    for (int k = 0; k < 3; k++) {
+        const bool on = m->on && m->per[k];
+        hl[k] = on ? m->half[k] : INFINITY;
+        ln[k] = on ? m->len[k] : 1.0;
+        il[k] = on ? m->inv[k] : 1.0;
+    }
+}
+
+PAIR_INLINE double pair_delta_folded(double hl, double ln, double il, double dx)
+{
+    double wrapped = dx - ln * pair_rint(dx * il);
+    return fabs(dx) > hl ? wrapped : dx;
 }
 
 /* The law kernel: for squared distance r2 and pair coefficient c (m_i m_j
@@ -136,25 +168,23 @@ PAIR_INLINE double pair_delta(const pair_image *m, int k, double dx)
  * cutoff and at r2 = 0 (softened gravity: never) the result is 0. */
 PAIR_INLINE double pair_kernel(const pair_force *p, const int law, double r2, double c, const bool want_u, double *u)
 {
+    /* Built-in laws compute on a safe argument and select the result (no
+     * branches), so loops over pairs vectorise; the same bits as branching. */
     switch (law) {
     case PSYS_PAIR_GRAVITY: {
         double s2 = r2 + p->eps2;
-        if (!(s2 > 0)) {
-            if (want_u) *u = 0;
-            return 0;
-        }
-        double inv = 1.0 / sqrt(s2), a = p->G * c;
-        if (want_u) *u = -a * inv;
-        return -a * (inv * inv * inv);
+        const bool ok = s2 > 0;
+        double inv = 1.0 / sqrt(ok ? s2 : 1.0), a = p->G * c;
+        if (want_u) *u = ok ? -a * inv : 0.0;
+        double g = -a * (inv * inv * inv);
+        return ok ? g : 0.0;
     }
     case PSYS_PAIR_COULOMB: {
-        if (!(r2 > 0)) {
-            if (want_u) *u = 0;
-            return 0;
-        }
-        double inv = 1.0 / sqrt(r2), a = p->kc * c;
-        if (want_u) *u = a * inv;
-        return a * (inv * inv * inv);
+        const bool ok = r2 > 0;
+        double inv = 1.0 / sqrt(ok ? r2 : 1.0), a = p->kc * c;
+        if (want_u) *u = ok ? a * inv : 0.0;
+        double g = a * (inv * inv * inv);
+        return ok ? g : 0.0;
     }
     case PSYS_PAIR_LENNARD_JONES: {
         /* evaluated unconditionally, then selected: neighbour lists hold many
@@ -166,13 +196,11 @@ PAIR_INLINE double pair_kernel(const pair_force *p, const int law, double r2, do
         return in ? g : 0.0;
     }
     case PSYS_PAIR_SOFT_REPULSION: {
-        if (!(r2 < p->rc2) || !(r2 > 0)) {
-            if (want_u) *u = 0;
-            return 0;
-        }
-        double r = sqrt(r2), dr = p->def.radius - r;
-        if (want_u) *u = 0.5 * p->kc * dr * dr;
-        return p->kc * dr / r;
+        const bool in = (r2 < p->rc2) & (r2 > 0);
+        double r = sqrt(in ? r2 : 1.0), dr = p->def.radius - r;
+        if (want_u) *u = in ? 0.5 * p->kc * dr * dr : 0.0;
+        double g = p->kc * dr / r;
+        return in ? g : 0.0;
     }
     default: { /* PSYS_PAIR_USER */
         if ((p->rc2 > 0 && !(r2 < p->rc2)) || !(r2 > 0)) {
@@ -216,6 +244,70 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
     for (int k = 0; k < d; k++)
         acc[k] = a[k];
     *uacc = us;
+}
+
+/* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
+ * partners: the pair forces g·dx, computed independently (the loop
+ * vectorises, gathering the partners' positions), then their sum in list
+ * order. The operations per pair and the order of the sum are those of
+ * pair_gather_list, so the bits are the same; acc starts the sum as there.
+ * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
+ * none for the other laws. */
+#define ROW_BLOCK 128
+PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d, const pair_image *m,
+                                 const double *restrict x, const double *restrict w, size_t i,
+                                 const uint32_t *restrict js, size_t nj, double *acc)
+{
+    double c0[ROW_BLOCK], c1[ROW_BLOCK], c2[ROW_BLOCK];
+    /* The kernel's constants in a local object: always safe to load, so the
+     * compiler may evaluate both sides of the kernel's selects. */
+    pair_force pk;
+    pk.G = p->G;
+    pk.eps2 = p->eps2;
+    pk.kc = p->kc;
+    pk.lj4 = p->lj4;
+    pk.lj24 = p->lj24;
+    pk.sig2 = p->sig2;
+    pk.ushift = p->ushift;
+    pk.rc2 = p->rc2;
+    pk.def.radius = p->def.radius;
+    const double xi0 = x[i * d], xi1 = x[i * d + 1], xi2 = d == 3 ? x[i * d + 2] : 0;
+    const bool weighted = law == PSYS_PAIR_GRAVITY || law == PSYS_PAIR_COULOMB;
+    const double wi = weighted ? w[i] : 1.0;
+    double a0 = acc[0], a1 = acc[1], a2 = d == 3 ? acc[2] : 0, hl[3], ln[3], il[3];
+    pair_image_fold(m, hl, ln, il);
+    for (size_t t0 = 0; t0 < nj; t0 += ROW_BLOCK) {
+        const size_t nb = nj - t0 < ROW_BLOCK ? nj - t0 : ROW_BLOCK;
+        const uint32_t *restrict jb = js + t0;
+        for (size_t t = 0; t < nb; t++) {
+            const size_t j = jb[t];
+            double dx0 = pair_delta_folded(hl[0], ln[0], il[0], xi0 - x[j * d]);
+            double dx1 = pair_delta_folded(hl[1], ln[1], il[1], xi1 - x[j * d + 1]), dx2 = 0;
+            double r2 = 0;
+            r2 += dx0 * dx0;
+            r2 += dx1 * dx1;
+            if (d == 3) {
+                dx2 = pair_delta_folded(hl[2], ln[2], il[2], xi2 - x[j * d + 2]);
+                r2 += dx2 * dx2;
+            }
+            double u;
+            double g = pair_kernel(&pk, law, r2, weighted ? wi * w[j] : 1.0, false, &u);
+            c0[t] = g * dx0;
+            c1[t] = g * dx1;
+            if (d == 3)
+                c2[t] = g * dx2;
+        }
+        for (size_t t = 0; t < nb; t++) {
+            a0 += c0[t];
+            a1 += c1[t];
+            if (d == 3)
+                a2 += c2[t];
+        }
+    }
+    acc[0] = a0;
+    acc[1] = a1;
+    if (d == 3)
+        acc[2] = a2;
 }
 
 /* Same over the index range [j0, j1), skipping i. */
@@ -262,15 +354,16 @@ static inline int pair_threads(const pair_force *p, double work)
 #endif
 }
 
-/* Grid lists are half lists (partners j > i, each pair evaluated once, in a
- * serial sweep) for up to two threads, and full lists (each particle gathers
- * from all its partners, in parallel, so each pair is evaluated twice) for
- * more: both add every particle's contributions in increasing partner
- * order, so they give the same bits (force_pair.c). Two threads would only
- * break even on full lists; they still share the list builds. */
+/* Built-in laws always use full lists: each particle gathers from all its
+ * partners (pair_row_forces, vectorised; each pair is evaluated twice, in
+ * parallel on any thread count). User laws call back per pair, which does
+ * not vectorise: for them the grid keeps half lists (partners j > i, each
+ * pair evaluated once, in a serial sweep) up to two threads and full lists
+ * from three on. Every variant adds each particle's contributions in
+ * increasing partner order, so they all give the same bits (force_pair.c). */
 static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
 {
-    if (p->grid.want_full)
+    if (p->grid.want_full || p->law != PSYS_PAIR_USER)
         return false;
     double per = p->grid.per_particle > 0 ? p->grid.per_particle : 32.0;
     return pair_threads(p, per * (double)n) <= 2;
