@@ -30,6 +30,16 @@
 #define DIRECT_IB 16   /* particles i per block */
 #define DIRECT_JB 512  /* partners j per block */
 
+/* The vectorised pair loops (pair_row_forces) are also built for AVX2 and
+ * AVX-512 on x86-64 with GCC (4 or 8 pairs per instruction), chosen at load
+ * time; no FMA, sqrt and division correctly rounded: the same bits on every
+ * path. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define PAIR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define PAIR_CLONES
+#endif
+
 psys_pair_def psys_pair_def_default(void)
 {
     psys_pair_def d;
@@ -163,9 +173,15 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
     memset(us, 0, sizeof us);
     for (size_t j0 = 0; j0 < n; j0 += DIRECT_JB) {
         size_t j1 = j0 + DIRECT_JB < n ? j0 + DIRECT_JB : n;
-        for (size_t i = i0; i < i1; i++)
-            if (!mark || mark[i])
+        for (size_t i = i0; i < i1; i++) {
+            if (mark && !mark[i])
+                continue;
+            if (want_f && !want_u && law != PSYS_PAIR_USER
+                && (w || (law != PSYS_PAIR_GRAVITY && law != PSYS_PAIR_COULOMB)))
+                pair_row_forces(p, law, d, m, x, w, i, NULL, j0, j1 - j0, false, acc[i - i0]);
+            else
                 pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
+        }
     }
     for (size_t i = i0; i < i1; i++) {
         if (mark && !mark[i])
@@ -185,15 +201,43 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
 typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                           double *f, double *ep, double *total, int nt, const unsigned char *mark);
 
+/* One block through the vectorised path (PAIR_CLONES): forces only. */
+#define DBLOCK_FN(name, LAW, D)                                                                              \
+    PAIR_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, \
+                                 size_t n, size_t b, double *f, const unsigned char *mark)                   \
+    {                                                                                                        \
+        direct_block(p, LAW, D, m, x, w, n, b, true, f, false, NULL, NULL, mark);                            \
+    }
+typedef void (*dblock_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                          size_t b, double *f, const unsigned char *mark);
+DBLOCK_FN(dblock_gravity_2, PSYS_PAIR_GRAVITY, 2)
+DBLOCK_FN(dblock_gravity_3, PSYS_PAIR_GRAVITY, 3)
+DBLOCK_FN(dblock_coulomb_2, PSYS_PAIR_COULOMB, 2)
+DBLOCK_FN(dblock_coulomb_3, PSYS_PAIR_COULOMB, 3)
+DBLOCK_FN(dblock_lj_2, PSYS_PAIR_LENNARD_JONES, 2)
+DBLOCK_FN(dblock_lj_3, PSYS_PAIR_LENNARD_JONES, 3)
+DBLOCK_FN(dblock_soft_2, PSYS_PAIR_SOFT_REPULSION, 2)
+DBLOCK_FN(dblock_soft_3, PSYS_PAIR_SOFT_REPULSION, 3)
+/* Indexed by law (not the user law), then [2-D, 3-D]. */
+static const dblock_fn dblock_fns[4][2] = {{dblock_gravity_2, dblock_gravity_3},
+                                           {dblock_coulomb_2, dblock_coulomb_3},
+                                           {dblock_lj_2, dblock_lj_3},
+                                           {dblock_soft_2, dblock_soft_3}};
+
 #define DIRECT_FN(name, LAW, D, WF, WU)                                                                      \
     static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
                      double *f, double *ep, double *total, int nt, const unsigned char *mark)                \
     {                                                                                                        \
         size_t nblocks = (n + DIRECT_IB - 1) / DIRECT_IB;                                                    \
+        const dblock_fn fast = WF && !WU && LAW != PSYS_PAIR_USER ? dblock_fns[LAW][D == 3] : NULL;         \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))                          \
-        for (size_t b = 0; b < nblocks; b++)                                                                 \
-            direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark);                              \
+        for (size_t b = 0; b < nblocks; b++) {                                                               \
+            if (fast)                                                                                        \
+                fast(p, m, x, w, n, b, f, mark);                                                             \
+            else                                                                                             \
+                direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark);                          \
+        }                                                                                                    \
     }
 
 /* Grid method: gather over the neighbour lists, for every particle or only
@@ -223,14 +267,7 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
     }
 
 /* Grid forces of rows [i0, i1) (all, or the marked ones) through
- * pair_row_forces: the same bits as GRID_FN's gather. On x86-64 with GCC
- * also built for AVX2 and AVX-512 (gathers, 4 or 8 pairs per instruction),
- * chosen at load time; no FMA, so the same bits on every path. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define PAIR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define PAIR_CLONES
-#endif
+ * pair_row_forces: the same bits as GRID_FN's gather. */
 #define ROWS_FN(name, LAW, D)                                                                                \
     PAIR_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, \
                                  size_t i0, size_t i1, const unsigned char *mark, double *out)               \
@@ -241,7 +278,7 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
             if (mark && !mark[i])                                                                            \
                 continue;                                                                                    \
             double acc[3] = {0, 0, 0};                                                                       \
-            pair_row_forces(p, LAW, D, m, x, w, i, nb + st[i], num[i], acc);                                 \
+            pair_row_forces(p, LAW, D, m, x, w, i, nb + st[i], 0, num[i], true, acc);                        \
             for (int k = 0; k < D; k++)                                                                      \
                 out[i * D + k] = acc[k];                                                                     \
         }                                                                                                    \

@@ -248,15 +248,17 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
 
 /* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
  * partners: the pair forces g·dx, computed independently (the loop
- * vectorises, gathering the partners' positions), then their sum in list
- * order. The operations per pair and the order of the sum are those of
- * pair_gather_list, so the bits are the same; acc starts the sum as there.
+ * vectorises), then their sum in list order. The operations per pair and
+ * the order of the sum are those of pair_gather_list, so the bits are the
+ * same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
+ * the index range [j0, j0 + nj) without i (pair_gather_range's sum).
  * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
  * none for the other laws. */
 #define ROW_BLOCK 128
 PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d, const pair_image *m,
                                  const double *restrict x, const double *restrict w, size_t i,
-                                 const uint32_t *restrict js, size_t nj, double *acc)
+                                 const uint32_t *restrict js, size_t j0, size_t nj, const bool list,
+                                 double *acc)
 {
     double c0[ROW_BLOCK], c1[ROW_BLOCK], c2[ROW_BLOCK];
     /* The kernel's constants in a local object: always safe to load, so the
@@ -278,9 +280,10 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
     pair_image_fold(m, hl, ln, il);
     for (size_t t0 = 0; t0 < nj; t0 += ROW_BLOCK) {
         const size_t nb = nj - t0 < ROW_BLOCK ? nj - t0 : ROW_BLOCK;
-        const uint32_t *restrict jb = js + t0;
+        const uint32_t *restrict jb = list ? js + t0 : NULL;
+        const size_t jr = j0 + t0;
         for (size_t t = 0; t < nb; t++) {
-            const size_t j = jb[t];
+            const size_t j = list ? jb[t] : jr + t;
             double dx0 = pair_delta_folded(hl[0], ln[0], il[0], xi0 - x[j * d]);
             double dx1 = pair_delta_folded(hl[1], ln[1], il[1], xi1 - x[j * d + 1]), dx2 = 0;
             double r2 = 0;
@@ -297,7 +300,15 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
             if (d == 3)
                 c2[t] = g * dx2;
         }
-        for (size_t t = 0; t < nb; t++) {
+        /* a range holding i sums around it, as pair_gather_range skips it */
+        const size_t skip = !list && i >= jr && i < jr + nb ? i - jr : nb;
+        for (size_t t = 0; t < skip; t++) {
+            a0 += c0[t];
+            a1 += c1[t];
+            if (d == 3)
+                a2 += c2[t];
+        }
+        for (size_t t = skip + 1; t < nb; t++) {
             a0 += c0[t];
             a1 += c1[t];
             if (d == 3)
