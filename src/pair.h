@@ -59,7 +59,9 @@ typedef struct pair_grid {
     uint32_t *cell_start;  /* cells_cap + 1 */
     uint32_t *cell_of;     /* cap: cell of each particle */
     uint32_t *cell_list;   /* cap: particles by cell, ascending within a cell */
-    double *cell_x;        /* cap·dim: their positions in that order (streamed by builds) */
+    double *cell_x;        /* cap·dim: their positions in that order (streamed by builds),
+                              component-major: coordinate k of slot t at cell_x[k·cx_stride + t] */
+    size_t cx_stride;      /* cap */
     size_t *nb_start;      /* cap: where particle i's list starts in nb */
     uint32_t *nb_num;      /* cap: its length */
     uint32_t *nb;          /* nb_cap neighbour indices, ascending per particle */

@@ -60,6 +60,7 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     GROW(fcache, cap * (size_t)dim, double)
     GROW(xcache, cap * (size_t)dim, double)
     GROW(cell_x, cap * (size_t)dim, double)
+    g->cx_stride = cap;
     GROW(cell_of, cap, uint32_t)
     GROW(cell_list, cap, uint32_t)
     GROW(nb_start, cap, size_t)
@@ -118,27 +119,108 @@ static void insertion_sort(uint32_t *a, size_t n)
     }
 }
 
-/* Sort a list of particle indices (< 2^32) in place: distribute into
- * SORT_BUCKETS buckets by their top bits (shift), then insertion-sort the
- * nearly sorted result. tmp holds SORT_MAX entries. */
+/* Sort a list of particle indices in place: distribute into SORT_BUCKETS
+ * buckets spanning the list's own range [min, max] (a particle's partners
+ * are spread over far fewer indices than the system has), then
+ * insertion-sort the nearly sorted result. tmp holds SORT_MAX entries. */
 #define SORT_BUCKETS 128
 #define SORT_MAX 512
-static void sort_indices(uint32_t *a, size_t n, int shift, uint32_t *tmp)
+static void sort_indices(uint32_t *a, size_t n, uint32_t *tmp)
 {
     if (n <= 16 || n > SORT_MAX) {
         insertion_sort(a, n);
         return;
     }
+    uint32_t lo = a[0], hi = a[0];
+    for (size_t i = 1; i < n; i++) {
+        lo = a[i] < lo ? a[i] : lo;
+        hi = a[i] > hi ? a[i] : hi;
+    }
+    int shift = 0;
+    while ((hi - lo) >> shift >= SORT_BUCKETS)
+        shift++;
     uint16_t count[SORT_BUCKETS + 1];
     memset(count, 0, sizeof count);
     for (size_t i = 0; i < n; i++)
-        count[(a[i] >> shift) + 1]++;
+        count[((a[i] - lo) >> shift) + 1]++;
     for (int b = 0; b < SORT_BUCKETS; b++)
         count[b + 1] = (uint16_t)(count[b + 1] + count[b]);
     for (size_t i = 0; i < n; i++)
-        tmp[count[a[i] >> shift]++] = a[i];
+        tmp[count[(a[i] - lo) >> shift]++] = a[i];
     memcpy(a, tmp, n * sizeof *a);
     insertion_sort(a, n);
+}
+
+/* Candidates t in [t0, t1) of cell_x/cell_list against the position xs:
+ * those within rl2 (and j != i, or j > i for half lists) are written from
+ * out[cnt] on while they fit in room, and counted past it; returns the new
+ * count. The same test, on the same numbers, in every variant. */
+PAIR_INLINE size_t scan_plain(const pair_grid *g, const double *xs, size_t i, uint32_t t0, uint32_t t1,
+                              uint32_t *out, size_t cnt, size_t room, double rl2, const bool half, const int d)
+{
+    const double *c0 = g->cell_x, *c1 = c0 + g->cx_stride, *c2 = c1 + g->cx_stride;
+    for (uint32_t t = t0; t < t1; t++) {
+        uint32_t j = g->cell_list[t];
+        double dx = xs[0] - c0[t], r2 = 0;
+        r2 += dx * dx;
+        dx = xs[1] - c1[t];
+        r2 += dx * dx;
+        if (d == 3) {
+            dx = xs[2] - c2[t];
+            r2 += dx * dx;
+        }
+        if (cnt < room)
+            out[cnt] = j;
+        cnt += (r2 < rl2) & (half ? j > i : j != i);
+    }
+    return cnt;
+}
+
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__)
+#include <immintrin.h>
+#define PSYS_SCAN_AVX512 1
+/* scan_plain eight candidates at a time: the distances as 8-wide vectors,
+ * the accepted indices packed with a compress (AVX-512F). While eight more
+ * fit in room; the rest (and the tail) through scan_plain. */
+__attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g, const double *xs, size_t i,
+                                                             uint32_t t0, uint32_t t1, uint32_t *out, size_t cnt,
+                                                             size_t room, double rl2, bool half, int d)
+{
+    const double *c0 = g->cell_x, *c1 = c0 + g->cx_stride, *c2 = c1 + g->cx_stride;
+    const __m512d x0 = _mm512_set1_pd(xs[0]), x1 = _mm512_set1_pd(xs[1]), x2 = _mm512_set1_pd(xs[2]);
+    const __m512d lim = _mm512_set1_pd(rl2), zero = _mm512_setzero_pd();
+    const __m512i vi = _mm512_set1_epi64((long long)i);
+    uint32_t t = t0;
+    for (; t + 8 <= t1 && cnt + 8 <= room; t += 8) {
+        __m512d dx = _mm512_sub_pd(x0, _mm512_loadu_pd(c0 + t));
+        __m512d r2 = _mm512_add_pd(zero, _mm512_mul_pd(dx, dx));
+        dx = _mm512_sub_pd(x1, _mm512_loadu_pd(c1 + t));
+        r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
+        if (d == 3) {
+            dx = _mm512_sub_pd(x2, _mm512_loadu_pd(c2 + t));
+            r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
+        }
+        __m512i j = _mm512_cvtepu32_epi64(_mm256_loadu_si256((const __m256i *)(g->cell_list + t)));
+        __mmask8 ok = _mm512_cmp_pd_mask(r2, lim, _CMP_LT_OQ)
+                      & (half ? _mm512_cmpgt_epu64_mask(j, vi) : _mm512_cmpneq_epu64_mask(j, vi));
+        _mm256_storeu_si256((__m256i *)(out + cnt), _mm512_cvtepi64_epi32(_mm512_maskz_compress_epi64(ok, j)));
+        cnt += (size_t)__builtin_popcount((unsigned)ok);
+    }
+    return d == 3 ? scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 3)
+                  : scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 2);
+}
+#endif
+
+/* Whether scan_avx512 may run here (once per build). PSYS_SCAN_PLAIN in
+ * the environment forces the portable scan, so the tests cover both paths
+ * on any machine (the lists, and so all results, are the same). */
+static bool scan_has_avx512(void)
+{
+#ifdef PSYS_SCAN_AVX512
+    return __builtin_cpu_supports("avx512f") && !getenv("PSYS_SCAN_PLAIN");
+#else
+    return false;
+#endif
 }
 
 /* Cells around a particle's own, per axis: offsets -2..2 (pruned by the
@@ -167,8 +249,8 @@ static inline double build_coord(const pair_grid *g, const pair_image *m, int k,
  * coordinates (a list may hold a pair slightly beyond cutoff + skin; the
  * kernel cuts at the cutoff exactly). */
 PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_image *m, const double *x, size_t i,
-                           uint32_t *out, size_t room, int shift, uint32_t *tmp, double rl2, const bool half,
-                           const int d)
+                           uint32_t *out, size_t room, uint32_t *tmp, double rl2, const bool half,
+                           const int d, const bool use512)
 {
     const pair_grid *g = &p->grid;
     const double lim = rl2 * (1 + 1e-6);
@@ -216,7 +298,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
                 ad2[k][a] = dist * dist;
             }
     }
-    const double *cx = g->cell_x;
+    const double *c0 = g->cell_x;
     size_t cnt = 0;
     const int nz = d == 3 ? sc->n[2] : 1;
     for (int a2 = 0; a2 < nz; a2++) {
@@ -230,31 +312,55 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
             if (dyz2 > lim || y < 0)
                 continue;
             const size_t row = (size_t)g->ncell[0] * ((size_t)y + (size_t)g->ncell[1] * (size_t)z);
-            for (int a0 = 0; a0 < sc->n[0]; a0++) {
-                const int xx = wc[0][a0];
-                if (dyz2 + ad2[0][a0] > lim || xx < 0)
-                    continue;
-                const size_t cell = row + (size_t)xx;
-                /* i's position relative to this cell's image */
-                const double xs[3] = {xi[0] - img[0][a0], xi[1] - img[1][a1], d == 3 ? xi[2] - img[2][a2] : 0};
-                for (uint32_t t = g->cell_start[cell], te = g->cell_start[cell + 1]; t < te; t++) {
-                    uint32_t j = g->cell_list[t];
-                    double r2 = 0;
-                    for (int k = 0; k < d; k++) {
-                        double dx = xs[k] - cx[(size_t)t * d + k];
-                        if (any_slow && slow[k])
-                            dx = pair_delta(m, k, dx);
-                        r2 += dx * dx;
+            if (any_slow) { /* each candidate through the minimum image */
+                for (int a0 = 0; a0 < sc->n[0]; a0++) {
+                    const int xx = wc[0][a0];
+                    if (dyz2 + ad2[0][a0] > lim || xx < 0)
+                        continue;
+                    const size_t cell = row + (size_t)xx;
+                    const double xs[3] = {xi[0] - img[0][a0], xi[1] - img[1][a1], d == 3 ? xi[2] - img[2][a2] : 0};
+                    for (uint32_t t = g->cell_start[cell], te = g->cell_start[cell + 1]; t < te; t++) {
+                        uint32_t j = g->cell_list[t];
+                        double r2 = 0;
+                        for (int k = 0; k < d; k++) {
+                            double dx = xs[k] - c0[(size_t)k * g->cx_stride + t];
+                            if (slow[k])
+                                dx = pair_delta(m, k, dx);
+                            r2 += dx * dx;
+                        }
+                        if (cnt < room)
+                            out[cnt] = j;
+                        cnt += (r2 < rl2) & (half ? j > i : j != i);
                     }
-                    if (cnt < room)
-                        out[cnt] = j;
-                    cnt += (r2 < rl2) & (half ? j > i : j != i);
                 }
+                continue;
+            }
+            /* cells next to each other in memory with the same image form
+             * one run of candidates */
+            for (int a0 = 0; a0 < sc->n[0];) {
+                const int xx = wc[0][a0];
+                if (dyz2 + ad2[0][a0] > lim || xx < 0) {
+                    a0++;
+                    continue;
+                }
+                int e0 = a0 + 1;
+                while (e0 < sc->n[0] && wc[0][e0] == wc[0][e0 - 1] + 1 && img[0][e0] == img[0][a0]
+                       && !(dyz2 + ad2[0][e0] > lim))
+                    e0++;
+                const double xs[3] = {xi[0] - img[0][a0], xi[1] - img[1][a1], d == 3 ? xi[2] - img[2][a2] : 0};
+                const uint32_t t0 = g->cell_start[row + (size_t)xx], t1 = g->cell_start[row + (size_t)wc[0][e0 - 1] + 1];
+#ifdef PSYS_SCAN_AVX512
+                if (use512)
+                    cnt = scan_avx512(g, xs, i, t0, t1, out, cnt, room, rl2, half, d);
+                else
+#endif
+                    cnt = scan_plain(g, xs, i, t0, t1, out, cnt, room, rl2, half, d);
+                a0 = e0;
             }
         }
     }
     if (cnt <= room)
-        sort_indices(out, cnt, shift, tmp);
+        sort_indices(out, cnt, tmp);
     return cnt;
 }
 
@@ -264,9 +370,8 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
                      size_t nchunks, double rl2, int nt)                                                     \
     {                                                                                                        \
         pair_grid *g = &p->grid;                                                                             \
-        int over = 0, shift = 0;                                                                             \
-        while ((n - 1) >> shift >= SORT_BUCKETS)                                                             \
-            shift++;                                                                                         \
+        int over = 0;                                                                                        \
+        const bool use512 = scan_has_avx512();                                                               \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1) reduction(|: over))        \
         for (size_t c = 0; c < nchunks; c++) {                                                               \
@@ -275,7 +380,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
             size_t i1 = (c + 1) * CHUNK < n ? (c + 1) * CHUNK : n;                                           \
             for (size_t i = c * CHUNK; i < i1; i++) {                                                        \
                 size_t room = end - pos;                                                                     \
-                size_t k = visit_d(p, sc, m, x, i, g->nb + pos, room, shift, tmp, rl2, HALF, D);             \
+                size_t k = visit_d(p, sc, m, x, i, g->nb + pos, room, tmp, rl2, HALF, D, use512);            \
                 g->nb_start[i] = pos;                                                                        \
                 g->nb_num[i] = (uint32_t)k;                                                                  \
                 if (k <= room)                                                                               \
@@ -378,7 +483,7 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1))
     for (size_t t = 0; t < n; t++)
         for (int k = 0; k < d; k++)
-            g->cell_x[t * d + k] = build_coord(g, m, k, x[(size_t)g->cell_list[t] * d + k]);
+            g->cell_x[(size_t)k * g->cx_stride + t] = build_coord(g, m, k, x[(size_t)g->cell_list[t] * d + k]);
     /* list radius with a slack for the rounding of build coordinates */
     double scale = 0;
     for (int k = 0; k < d; k++)
