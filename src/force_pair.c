@@ -210,19 +210,22 @@ typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double
     }
 typedef void (*dblock_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                           size_t b, double *f, const unsigned char *mark);
-DBLOCK_FN(dblock_gravity_2, PSYS_PAIR_GRAVITY, 2)
-DBLOCK_FN(dblock_gravity_3, PSYS_PAIR_GRAVITY, 3)
-DBLOCK_FN(dblock_coulomb_2, PSYS_PAIR_COULOMB, 2)
-DBLOCK_FN(dblock_coulomb_3, PSYS_PAIR_COULOMB, 3)
-DBLOCK_FN(dblock_lj_2, PSYS_PAIR_LENNARD_JONES, 2)
-DBLOCK_FN(dblock_lj_3, PSYS_PAIR_LENNARD_JONES, 3)
-DBLOCK_FN(dblock_soft_2, PSYS_PAIR_SOFT_REPULSION, 2)
-DBLOCK_FN(dblock_soft_3, PSYS_PAIR_SOFT_REPULSION, 3)
-/* Indexed by law (not the user law), then [2-D, 3-D]. */
-static const dblock_fn dblock_fns[4][2] = {{dblock_gravity_2, dblock_gravity_3},
-                                           {dblock_coulomb_2, dblock_coulomb_3},
-                                           {dblock_lj_2, dblock_lj_3},
-                                           {dblock_soft_2, dblock_soft_3}};
+/* The vectorised functions of every built-in law in 2-D and 3-D, and their
+ * table indexed by law (not the user law), then [2-D, 3-D]. */
+#define VEC_VARIANTS(MAKE, PFX)                                                                              \
+    MAKE(PFX##_gravity_2, PSYS_PAIR_GRAVITY, 2)                                                              \
+    MAKE(PFX##_gravity_3, PSYS_PAIR_GRAVITY, 3)                                                              \
+    MAKE(PFX##_coulomb_2, PSYS_PAIR_COULOMB, 2)                                                              \
+    MAKE(PFX##_coulomb_3, PSYS_PAIR_COULOMB, 3)                                                              \
+    MAKE(PFX##_lj_2, PSYS_PAIR_LENNARD_JONES, 2)                                                             \
+    MAKE(PFX##_lj_3, PSYS_PAIR_LENNARD_JONES, 3)                                                             \
+    MAKE(PFX##_soft_2, PSYS_PAIR_SOFT_REPULSION, 2)                                                          \
+    MAKE(PFX##_soft_3, PSYS_PAIR_SOFT_REPULSION, 3)
+#define VEC_TABLE(PFX)                                                                                       \
+    {{PFX##_gravity_2, PFX##_gravity_3}, {PFX##_coulomb_2, PFX##_coulomb_3}, {PFX##_lj_2, PFX##_lj_3},      \
+     {PFX##_soft_2, PFX##_soft_3}}
+VEC_VARIANTS(DBLOCK_FN, dblock)
+static const dblock_fn dblock_fns[4][2] = VEC_TABLE(dblock);
 
 #define DIRECT_FN(name, LAW, D, WF, WU)                                                                      \
     static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
@@ -285,17 +288,8 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
     }
 typedef void (*rows_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t i0,
                         size_t i1, const unsigned char *mark, double *out);
-ROWS_FN(rows_gravity_2, PSYS_PAIR_GRAVITY, 2)
-ROWS_FN(rows_gravity_3, PSYS_PAIR_GRAVITY, 3)
-ROWS_FN(rows_coulomb_2, PSYS_PAIR_COULOMB, 2)
-ROWS_FN(rows_coulomb_3, PSYS_PAIR_COULOMB, 3)
-ROWS_FN(rows_lj_2, PSYS_PAIR_LENNARD_JONES, 2)
-ROWS_FN(rows_lj_3, PSYS_PAIR_LENNARD_JONES, 3)
-ROWS_FN(rows_soft_2, PSYS_PAIR_SOFT_REPULSION, 2)
-ROWS_FN(rows_soft_3, PSYS_PAIR_SOFT_REPULSION, 3)
-/* Indexed by law (not the user law), then [2-D, 3-D]. */
-static const rows_fn rows_fns[4][2] = {{rows_gravity_2, rows_gravity_3}, {rows_coulomb_2, rows_coulomb_3},
-                                       {rows_lj_2, rows_lj_3}, {rows_soft_2, rows_soft_3}};
+VEC_VARIANTS(ROWS_FN, rows)
+static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 #define ROWS_CHUNK 64
 
 /* Grid forces over full lists through rows_fns, in parallel by chunks of rows. */
