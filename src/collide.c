@@ -274,6 +274,7 @@ static double earliest_crossing(const psys_system *s, const double *y0, size_t *
 psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken)
 {
     double h = 0;
+    psys_solver_set_threads(solver, psys_system_effective_threads(s));
     if (!s->nplanes || !s->n) { /* nothing can collide (and the scratch state is NULL with no particles) */
         psys_status st = psys_solver_step(solver, h_max, &h);
         if (st == PSYS_OK)

@@ -49,6 +49,7 @@ psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_erro
     s->ode = *ode;
     s->n = ode->size;
     s->tol = 1e-6;
+    s->threads = 1;
     s->cg_tol = 1e-6;
     s->cg_maxit = 1000;
     for (int i = 0; i < cls->nbuf; i++)
@@ -105,6 +106,14 @@ psys_status psys_solver_set_tolerance(psys_solver *s, double tol)
     return PSYS_OK;
 }
 
+psys_status psys_solver_set_threads(psys_solver *s, int threads)
+{
+    if (threads < 0)
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "threads must be >= 0 (got %d)", threads);
+    s->threads = threads;
+    return PSYS_OK;
+}
+
 psys_status psys_solver_set_next_step(psys_solver *s, double h)
 {
     if (!(h > 0) || !isfinite(h))
@@ -138,8 +147,13 @@ psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)
 
 int psys__solver_threads(const psys_solver *s)
 {
-    int nt = s->ode.threads ? s->ode.threads(s->ode.ctx) : 1;
+#ifdef _OPENMP
+    int nt = s->threads > 0 ? s->threads : omp_get_max_threads();
     return nt < 1 ? 1 : nt;
+#else
+    (void)s;
+    return 1;
+#endif
 }
 
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)

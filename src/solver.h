@@ -23,6 +23,7 @@ struct psys_solver {
     size_t n;
     double *buf[PSYS__MAX_BUFS]; /* scratch vectors of length n, allocated once */
     double tol;
+    int threads;      /* psys_solver_set_threads: 0 = OpenMP's default */
     double h_next;
     size_t rejected;
     size_t bad;
@@ -50,7 +51,7 @@ struct psys__solver_class {
 extern const psys__solver_class psys__euler, psys__midpoint, psys__rk4, psys__rk45;
 extern const psys__solver_class psys__symplectic_euler, psys__verlet, psys__implicit_euler;
 
-/** Threads for the solver's elementwise passes (ode.threads, at least 1). */
+/** Threads for the solver's elementwise passes (at least 1). */
 int psys__solver_threads(const psys_solver *s);
 /** Project y1 at t1, check it is finite, then set_state(y1) and set_time(t1). */
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);

@@ -386,8 +386,6 @@ static void par_copy(int nt, double *restrict dst, const double *restrict src, s
     }
 }
 
-static int ode_threads(void *ctx) { return psys_system_effective_threads(ctx); }
-
 /* Clear f, let every force object add into it, then the planes' contact
  * forces, which depend on the total applied force (notes §7.3). With MPI
  * (mpi.c), pair forces fill only this rank's rows and the rows are combined
@@ -528,7 +526,6 @@ psys_ode psys_system_ode(psys_system *s)
     o.mass = ode_mass;
     o.jacobian = ode_jacobian;
     o.block = s->dim;
-    o.threads = ode_threads;
     return o;
 }
 

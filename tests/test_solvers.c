@@ -746,8 +746,62 @@ static void nonfinite_particle_force(void)
     }
 }
 
+/* A long nonlinear ODE (y_i' = -sin(y_{i+1}) + 0.1 i/n, cyclic), past the
+ * length from which the solvers' vector passes run in parallel. */
+typedef struct longode {
+    size_t n;
+    double t, *y;
+} longode;
+static void lo_get(void *ctx, double *y) { memcpy(y, ((longode *)ctx)->y, ((longode *)ctx)->n * sizeof(double)); }
+static void lo_set(void *ctx, const double *y) { memcpy(((longode *)ctx)->y, y, ((longode *)ctx)->n * sizeof(double)); }
+static double lo_time(void *ctx) { return ((longode *)ctx)->t; }
+static void lo_set_time(void *ctx, double t) { ((longode *)ctx)->t = t; }
+static psys_status lo_deriv(void *ctx, double t, const double *y, double *yd)
+{
+    (void)t;
+    const longode *o = ctx;
+    for (size_t i = 0; i < o->n; i++)
+        yd[i] = -sin(y[(i + 1) % o->n]) + 0.1 * (double)i / (double)o->n;
+    return PSYS_OK;
+}
+
+/* psys_solver_set_threads: 1 and 3 threads give the same bits for every
+ * solver that takes a general ODE; a negative count is refused. */
+static void solver_threads_same_bits(void)
+{
+    const char *names[] = {"euler", "midpoint", "rk4", "rk45"};
+    const size_t n = 100000;
+    for (size_t k = 0; k < sizeof names / sizeof names[0]; k++) {
+        double *out[2] = {NULL, NULL};
+        for (int r = 0; r < 2; r++) {
+            longode o = {n, 0, calloc(n, sizeof(double))};
+            CHECK(o.y != NULL);
+            if (!o.y)
+                return;
+            for (size_t i = 0; i < n; i++)
+                o.y[i] = sin(0.001 * (double)i);
+            psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
+                            .set_time = lo_set_time, .derivative = lo_deriv};
+            psys_solver *s = make_solver(names[k], &ode);
+            CHECK(psys_solver_set_threads(s, -1) == PSYS_ERR_INVALID);
+            CHECK(psys_solver_set_threads(s, r == 0 ? 1 : 3) == PSYS_OK);
+            for (int step = 0; step < 5; step++)
+                CHECK(psys_solver_step(s, 0.05, NULL) == PSYS_OK);
+            psys_solver_destroy(s);
+            out[r] = o.y;
+        }
+        if (memcmp(out[0], out[1], n * sizeof(double)) != 0)
+            fprintf(stderr, "%s: 3 threads differ from 1\n", names[k]);
+        CHECK(memcmp(out[0], out[1], n * sizeof(double)) == 0);
+        CHECK(out[0][12345] != sin(0.001 * 12345)); /* it moved */
+        free(out[0]);
+        free(out[1]);
+    }
+}
+
 static const check_case cases[] = {
     {"registry", registry},
+    {"solver_threads_same_bits", solver_threads_same_bits},
     {"symplectic_needs_second_order", symplectic_needs_second_order},
     {"custom_ode_decay", custom_ode_decay},
     {"custom_ode_symplectic", custom_ode_symplectic},

@@ -79,10 +79,6 @@ typedef struct psys_ode {
      *  the forces at (t, y) into J. Forces that cannot are treated explicitly. */
     psys_status (*jacobian)(void *ctx, double t, const double *y, struct psys_jacobian *J);
     int block;    /**< block size of jacobian (the dimension) */
-    /** Optional (NULL = 1): threads the solver may use for its elementwise
-     *  vector passes; results must not depend on it (they do not: each
-     *  element is computed alone). */
-    int (*threads)(void *ctx);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
@@ -123,6 +119,11 @@ const char *psys_solver_last_error(const psys_solver *s);
 
 /** Local error tolerance of adaptive solvers (absolute and relative). */
 psys_status psys_solver_set_tolerance(psys_solver *s, double tol);
+/** Threads for the solver's elementwise passes over long state vectors
+ *  (0: OpenMP's default; 1, the default, without OpenMP); results are the
+ *  same bits for every count. psys_system_advance sets it to the system's
+ *  psys_system_effective_threads before each step. */
+psys_status psys_solver_set_threads(psys_solver *s, int threads);
 /** Step size the adaptive solver will try next (0 for fixed-step solvers). */
 double psys_solver_next_step(const psys_solver *s);
 /** Set the step size the adaptive solver will try next (restoring a checkpoint). */
@@ -437,7 +438,8 @@ psys_status psys_system_plane(const psys_system *sys, size_t k, psys_plane_def *
 
 /** Advance the system by one solver step of at most h_max with collision
  *  handling against the planes; *h_taken gets the step length. The solver
- *  must have been created for this system's ODE. */
+ *  must have been created for this system's ODE; its thread count is set to
+ *  the system's (psys_solver_set_threads). */
 psys_status psys_system_advance(psys_system *sys, psys_solver *solver, double h_max, double *h_taken);
 
 /** The ODE view of the system: y = [x (n*dim) | v (n*dim)]. The psys_ode
