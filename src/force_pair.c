@@ -93,6 +93,7 @@ static void pair_destroy(void *data)
         return;
     free(p->epart);
     free(p->wbuf);
+    free(p->xsoa);
     psys__pair_grid_free(&p->grid);
     psys__pair_bh_free(&p->bh);
     free(p);
@@ -112,6 +113,10 @@ static bool pair_reserve(pair_force *p, size_t n)
     if (!ep)
         return false;
     p->epart = ep;
+    double *xs = psys__realloc(p->xsoa, cap * (size_t)p->dim, sizeof(double));
+    if (!xs)
+        return false;
+    p->xsoa = xs;
     if (p->law == PSYS_PAIR_COULOMB) {
         double *wb = psys__realloc(p->wbuf, cap, sizeof(double));
         if (!wb)
@@ -178,7 +183,7 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
                 continue;
             if (want_f && !want_u && law != PSYS_PAIR_USER
                 && (w || (law != PSYS_PAIR_GRAVITY && law != PSYS_PAIR_COULOMB)))
-                pair_row_forces(p, law, d, m, x, w, i, NULL, j0, j1 - j0, false, acc[i - i0]);
+                pair_row_forces(p, law, d, m, w, i, NULL, j0, j1 - j0, false, acc[i - i0]);
             else
                 pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
         }
@@ -198,8 +203,10 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
     }
 }
 
+/* vec: p->xsoa holds the positions (pair_soa_positions), so forces may go
+ * through the vectorised loop. */
 typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
-                          double *f, double *ep, double *total, int nt, const unsigned char *mark);
+                          double *f, double *ep, double *total, int nt, const unsigned char *mark, bool vec);
 
 /* One block through the vectorised path (PAIR_CLONES): forces only. */
 #define DBLOCK_FN(name, LAW, D)                                                                              \
@@ -229,10 +236,10 @@ static const dblock_fn dblock_fns[4][2] = VEC_TABLE(dblock);
 
 #define DIRECT_FN(name, LAW, D, WF, WU)                                                                      \
     static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
-                     double *f, double *ep, double *total, int nt, const unsigned char *mark)                \
+                     double *f, double *ep, double *total, int nt, const unsigned char *mark, bool vec)      \
     {                                                                                                        \
         size_t nblocks = (n + DIRECT_IB - 1) / DIRECT_IB;                                                    \
-        const dblock_fn fast = WF && !WU && LAW != PSYS_PAIR_USER ? dblock_fns[LAW][D == 3] : NULL;         \
+        const dblock_fn fast = vec && WF && !WU && LAW != PSYS_PAIR_USER ? dblock_fns[LAW][D == 3] : NULL;  \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))                          \
         for (size_t b = 0; b < nblocks; b++) {                                                               \
@@ -272,8 +279,8 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
 /* Grid forces of rows [i0, i1) (all, or the marked ones) through
  * pair_row_forces: the same bits as GRID_FN's gather. */
 #define ROWS_FN(name, LAW, D)                                                                                \
-    PAIR_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, \
-                                 size_t i0, size_t i1, const unsigned char *mark, double *out)               \
+    PAIR_CLONES static void name(const pair_force *p, const pair_image *m, const double *w, size_t i0,       \
+                                 size_t i1, const unsigned char *mark, double *out)                          \
     {                                                                                                        \
         const size_t *st = p->grid.nb_start;                                                                 \
         const uint32_t *num = p->grid.nb_num, *nb = p->grid.nb;                                              \
@@ -281,19 +288,19 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
             if (mark && !mark[i])                                                                            \
                 continue;                                                                                    \
             double acc[3] = {0, 0, 0};                                                                       \
-            pair_row_forces(p, LAW, D, m, x, w, i, nb + st[i], 0, num[i], true, acc);                        \
+            pair_row_forces(p, LAW, D, m, w, i, nb + st[i], 0, num[i], true, acc);                           \
             for (int k = 0; k < D; k++)                                                                      \
                 out[i * D + k] = acc[k];                                                                     \
         }                                                                                                    \
     }
-typedef void (*rows_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t i0,
-                        size_t i1, const unsigned char *mark, double *out);
+typedef void (*rows_fn)(const pair_force *p, const pair_image *m, const double *w, size_t i0, size_t i1,
+                        const unsigned char *mark, double *out);
 VEC_VARIANTS(ROWS_FN, rows)
 static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 #define ROWS_CHUNK 64
 
 /* Grid forces over full lists through rows_fns, in parallel by chunks of rows. */
-static void grid_rows(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+static void grid_rows(const pair_force *p, const pair_image *m, const double *w, size_t n,
                       const unsigned char *mark, double *out, int nt)
 {
     const rows_fn fn = rows_fns[p->law][p->dim == 3];
@@ -302,7 +309,7 @@ static void grid_rows(const pair_force *p, const pair_image *m, const double *x,
     PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
     for (size_t c = 0; c < nchunks; c++) {
         size_t i0 = c * ROWS_CHUNK, i1 = i0 + ROWS_CHUNK < n ? i0 + ROWS_CHUNK : n;
-        fn(p, m, x, w, i0, i1, mark, out);
+        fn(p, m, w, i0, i1, mark, out);
     }
 }
 
@@ -426,7 +433,11 @@ static void direct_eval(const pair_force *p, const pair_image *m, const double *
 {
     int nt = ep || !want_u ? pair_threads(p, (double)n * (double)n) : 1;
     const unsigned char *mark = want_u ? NULL : psys__dist_mark(p->sys);
-    direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt, mark);
+    /* not in the fallback without storage (the SoA copy may be missing) */
+    const bool vec = !want_u && p->xsoa && n <= p->cap;
+    if (vec)
+        pair_soa_positions(p, x, n, nt);
+    direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt, mark, vec);
 }
 
 /* Particle i's position differs (bitwise, up to NaN payloads) from the cached one. */
@@ -503,8 +514,10 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         }
     }
     if (compute && !g->half && p->law != PSYS_PAIR_USER
-        && (w || (p->law != PSYS_PAIR_GRAVITY && p->law != PSYS_PAIR_COULOMB)))
-        grid_rows(p, m, x, w, n, mark, g->fcache, nt);
+        && (w || (p->law != PSYS_PAIR_GRAVITY && p->law != PSYS_PAIR_COULOMB))) {
+        pair_soa_positions(p, x, n, nt);
+        grid_rows(p, m, w, n, mark, g->fcache, nt);
+    }
     else if (compute)
         fn(p, m, x, w, n, mark, g->fcache, nt);
     if (mark) {

@@ -102,6 +102,8 @@ typedef struct pair_force {
     size_t cap;            /* particles the per-particle buffers hold */
     double *epart;         /* cap per-particle energies */
     double *wbuf;          /* coulomb: cap charges (0 past the system's charge array) */
+    double *xsoa;          /* cap·dim: the positions by component (x_k of particle j at
+                              xsoa[k·cap + j]) for the vectorised loops (pair_soa_positions) */
     pair_grid grid;
     pair_bh bh;
     psys_pair_stats stats;
@@ -258,10 +260,12 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
  * none for the other laws. */
 #define ROW_BLOCK 128
 PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d, const pair_image *m,
-                                 const double *restrict x, const double *restrict w, size_t i,
-                                 const uint32_t *restrict js, size_t j0, size_t nj, const bool list,
-                                 double *acc)
+                                 const double *restrict w, size_t i, const uint32_t *restrict js, size_t j0,
+                                 size_t nj, const bool list, double *acc)
 {
+    /* positions from the SoA copy (pair_soa_positions): a partner's three
+     * coordinates are three plain indexed loads, no index arithmetic */
+    const double *restrict X0 = p->xsoa, *restrict X1 = X0 + p->cap, *restrict X2 = X1 + p->cap;
     double c0[ROW_BLOCK], c1[ROW_BLOCK], c2[ROW_BLOCK];
     /* The kernel's constants in a local object: always safe to load, so the
      * compiler may evaluate both sides of the kernel's selects. */
@@ -275,7 +279,7 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
     pk.ushift = p->ushift;
     pk.rc2 = p->rc2;
     pk.def.radius = p->def.radius;
-    const double xi0 = x[i * d], xi1 = x[i * d + 1], xi2 = d == 3 ? x[i * d + 2] : 0;
+    const double xi0 = X0[i], xi1 = X1[i], xi2 = d == 3 ? X2[i] : 0;
     const bool weighted = law == PSYS_PAIR_GRAVITY || law == PSYS_PAIR_COULOMB;
     const double wi = weighted ? w[i] : 1.0;
     double a0 = acc[0], a1 = acc[1], a2 = d == 3 ? acc[2] : 0, hl[3], ln[3], il[3];
@@ -286,13 +290,13 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
         const size_t jr = j0 + t0;
         for (size_t t = 0; t < nb; t++) {
             const size_t j = list ? jb[t] : jr + t;
-            double dx0 = pair_delta_folded(hl[0], ln[0], il[0], xi0 - x[j * d]);
-            double dx1 = pair_delta_folded(hl[1], ln[1], il[1], xi1 - x[j * d + 1]), dx2 = 0;
+            double dx0 = pair_delta_folded(hl[0], ln[0], il[0], xi0 - X0[j]);
+            double dx1 = pair_delta_folded(hl[1], ln[1], il[1], xi1 - X1[j]), dx2 = 0;
             double r2 = 0;
             r2 += dx0 * dx0;
             r2 += dx1 * dx1;
             if (d == 3) {
-                dx2 = pair_delta_folded(hl[2], ln[2], il[2], xi2 - x[j * d + 2]);
+                dx2 = pair_delta_folded(hl[2], ln[2], il[2], xi2 - X2[j]);
                 r2 += dx2 * dx2;
             }
             double u;
@@ -321,6 +325,19 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
     acc[1] = a1;
     if (d == 3)
         acc[2] = a2;
+}
+
+/* Fill p->xsoa from the particle-major positions x (n particles). */
+PAIR_INLINE void pair_soa_positions(const pair_force *p, const double *restrict x, size_t n, int nt)
+{
+    const int d = p->dim;
+    double *restrict X = p->xsoa;
+    const size_t cs = p->cap;
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN))
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < d; k++)
+            X[(size_t)k * cs + i] = x[i * (size_t)d + (size_t)k];
 }
 
 /* Same over the index range [j0, j1), skipping i. */
