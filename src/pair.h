@@ -114,6 +114,7 @@ typedef struct pair_image {
     bool on;
     bool per[3];
     double len[3], half[3], inv[3]; /* inv: 1/len, so images need no division */
+    double far[3];                  /* 1.5·len: below it the nearest image is one box away */
 } pair_image;
 
 PAIR_INLINE void pair_image_of(const psys__box *b, pair_image *m)
@@ -124,6 +125,7 @@ PAIR_INLINE void pair_image_of(const psys__box *b, pair_image *m)
         m->len[k] = b->len[k];
         m->half[k] = 0.5 * b->len[k];
         m->inv[k] = m->per[k] ? 1.0 / b->len[k] : 1.0;
+        m->far[k] = 1.5 * b->len[k];
     }
 }
 
@@ -137,12 +139,14 @@ PAIR_INLINE double pair_rint(double y)
     return a < 0x1p52 ? copysign(r, y) : y;
 }
 
-/* x_i - x_j on one axis under the minimum image (odd in dx, so exact antisymmetry holds);
- * the image index is rounded from dx·(1/len), not dx/len (no division per pair). */
+/* x_i - x_j on one axis under the minimum image (odd in dx, so exact
+ * antisymmetry holds): past half a box, one box length off while below 1.5
+ * boxes (the usual case: particles are wrapped into the box after every
+ * step), else the image index rounded from dx·(1/len) (no division). */
 PAIR_INLINE double pair_delta(const pair_image *m, int k, double dx)
 {
     if (m->on && m->per[k] && fabs(dx) > m->half[k])
-        dx -= m->len[k] * pair_rint(dx * m->inv[k]);
+        dx = fabs(dx) < m->far[k] ? dx - copysign(m->len[k], dx) : dx - m->len[k] * pair_rint(dx * m->inv[k]);
     return dx;
 }
 
@@ -150,20 +154,25 @@ PAIR_INLINE double pair_delta(const pair_image *m, int k, double dx)
  * vectorised loops: hl[k] = half the box length on an active periodic axis,
  * +inf otherwise (never exceeded), ln[k] the length (1 where unused). The
  * same result as pair_delta for every dx, NaN included. */
-PAIR_INLINE void pair_image_fold(const pair_image *m, double hl[3], double ln[3], double il[3])
+PAIR_INLINE void pair_image_fold(const pair_image *m, double hl[3], double ln[3], double il[3], double fr[3])
 {
     for (int k = 0; k < 3; k++) {
         const bool on = m->on && m->per[k];
         hl[k] = on ? m->half[k] : INFINITY;
         ln[k] = on ? m->len[k] : 1.0;
         il[k] = on ? m->inv[k] : 1.0;
+        fr[k] = on ? m->far[k] : INFINITY;
     }
 }
 
-PAIR_INLINE double pair_delta_folded(double hl, double ln, double il, double dx)
+/* exact: pair_delta for every dx; else only for |dx| < fr (the caller checks). */
+PAIR_INLINE double pair_delta_folded(double hl, double ln, double il, double fr, double dx, const bool exact)
 {
-    double wrapped = dx - ln * pair_rint(dx * il);
-    return fabs(dx) > hl ? wrapped : dx;
+    const double a = fabs(dx), near = dx - copysign(ln, dx);
+    if (!exact)
+        return a > hl ? near : dx;
+    const double wrapped = dx - ln * pair_rint(dx * il);
+    return a > hl ? (a < fr ? near : wrapped) : dx;
 }
 
 /* The law kernel: for squared distance r2 and pair coefficient c (m_i m_j
@@ -259,6 +268,45 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
  * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
  * none for the other laws. */
 #define ROW_BLOCK 128
+
+/* Pass one of pair_row_forces over partners t < nb: c_k[t] = g·dx_k. With
+ * exact false the minimum image takes the one-box shortcut, and the return
+ * value says whether some |dx| reached 1.5 boxes (then the caller runs the
+ * block again with exact: the shortcut is pair_delta wherever it is used). */
+PAIR_INLINE bool pair_row_terms(const pair_force *pk, const int law, const int d, const double *restrict X0,
+                                const double *restrict X1, const double *restrict X2, const double *restrict w,
+                                size_t i, const uint32_t *restrict jb, size_t jr, size_t nb, const bool list,
+                                const double *hl, const double *ln, const double *il, const double *fr,
+                                double *restrict c0, double *restrict c1, double *restrict c2, const bool exact)
+{
+    const double xi0 = X0[i], xi1 = X1[i], xi2 = d == 3 ? X2[i] : 0;
+    const bool weighted = law == PSYS_PAIR_GRAVITY || law == PSYS_PAIR_COULOMB;
+    const double wi = weighted ? w[i] : 1.0;
+    int far = 0;
+    for (size_t t = 0; t < nb; t++) {
+        const size_t j = list ? jb[t] : jr + t;
+        const double e0 = xi0 - X0[j], e1 = xi1 - X1[j], e2 = d == 3 ? xi2 - X2[j] : 0;
+        if (!exact)
+            far |= (fabs(e0) >= fr[0]) | (fabs(e1) >= fr[1]) | (d == 3 && fabs(e2) >= fr[2]);
+        double dx0 = pair_delta_folded(hl[0], ln[0], il[0], fr[0], e0, exact);
+        double dx1 = pair_delta_folded(hl[1], ln[1], il[1], fr[1], e1, exact), dx2 = 0;
+        double r2 = 0;
+        r2 += dx0 * dx0;
+        r2 += dx1 * dx1;
+        if (d == 3) {
+            dx2 = pair_delta_folded(hl[2], ln[2], il[2], fr[2], e2, exact);
+            r2 += dx2 * dx2;
+        }
+        double u;
+        double g = pair_kernel(pk, law, r2, weighted ? wi * w[j] : 1.0, false, &u);
+        c0[t] = g * dx0;
+        c1[t] = g * dx1;
+        if (d == 3)
+            c2[t] = g * dx2;
+    }
+    return far != 0;
+}
+
 PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d, const pair_image *m,
                                  const double *restrict w, size_t i, const uint32_t *restrict js, size_t j0,
                                  size_t nj, const bool list, double *acc)
@@ -279,33 +327,14 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
     pk.ushift = p->ushift;
     pk.rc2 = p->rc2;
     pk.def.radius = p->def.radius;
-    const double xi0 = X0[i], xi1 = X1[i], xi2 = d == 3 ? X2[i] : 0;
-    const bool weighted = law == PSYS_PAIR_GRAVITY || law == PSYS_PAIR_COULOMB;
-    const double wi = weighted ? w[i] : 1.0;
-    double a0 = acc[0], a1 = acc[1], a2 = d == 3 ? acc[2] : 0, hl[3], ln[3], il[3];
-    pair_image_fold(m, hl, ln, il);
+    double a0 = acc[0], a1 = acc[1], a2 = d == 3 ? acc[2] : 0, hl[3], ln[3], il[3], fr[3];
+    pair_image_fold(m, hl, ln, il, fr);
     for (size_t t0 = 0; t0 < nj; t0 += ROW_BLOCK) {
         const size_t nb = nj - t0 < ROW_BLOCK ? nj - t0 : ROW_BLOCK;
         const uint32_t *restrict jb = list ? js + t0 : NULL;
         const size_t jr = j0 + t0;
-        for (size_t t = 0; t < nb; t++) {
-            const size_t j = list ? jb[t] : jr + t;
-            double dx0 = pair_delta_folded(hl[0], ln[0], il[0], xi0 - X0[j]);
-            double dx1 = pair_delta_folded(hl[1], ln[1], il[1], xi1 - X1[j]), dx2 = 0;
-            double r2 = 0;
-            r2 += dx0 * dx0;
-            r2 += dx1 * dx1;
-            if (d == 3) {
-                dx2 = pair_delta_folded(hl[2], ln[2], il[2], xi2 - X2[j]);
-                r2 += dx2 * dx2;
-            }
-            double u;
-            double g = pair_kernel(&pk, law, r2, weighted ? wi * w[j] : 1.0, false, &u);
-            c0[t] = g * dx0;
-            c1[t] = g * dx1;
-            if (d == 3)
-                c2[t] = g * dx2;
-        }
+        if (pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, c0, c1, c2, false))
+            pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, c0, c1, c2, true);
         /* a range holding i sums around it, as pair_gather_range skips it */
         const size_t skip = !list && i >= jr && i < jr + nb ? i - jr : nb;
         for (size_t t = 0; t < skip; t++) {
