@@ -118,6 +118,9 @@ void psys__box_wrap(psys_system *s)
     if (!s->box.any_periodic)
         return;
     int d = s->dim;
+    const int nt = psys_system_effective_threads(s);
+    (void)nt;
+    PSYS_PAR_FOR(nt, s->n * (size_t)d)
     for (size_t i = 0; i < s->n; i++) {
         if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
             continue;

@@ -466,6 +466,8 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     const int d = p->dim;
     const size_t nd = n * (size_t)d;
     int nt = g->half ? 1 : pair_threads(p, 2.0 * (double)p->stats.pairs);
+    const int ntv = pair_threads(p, (double)nd); /* elementwise passes */
+    (void)ntv;
     grid_fn fn = (g->half ? half_fns : grid_fns)[p->law][variant(d, want_u)];
     if (want_u) {
         fn(p, m, x, w, n, NULL, ep, nt);
@@ -527,11 +529,14 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         }
         memset(g->mark, 0, n);
     } else if (compute) {
-        memcpy(g->xcache, x, nd * sizeof(double));
+        PSYS_PAR_FOR(ntv, nd)
+        for (size_t k = 0; k < nd; k++)
+            g->xcache[k] = x[k];
     }
     g->cache_ok = cacheable;
     g->cache_n = n;
     g->cache_rebuilds = p->stats.rebuilds;
+    PSYS_PAR_FOR(ntv, nd)
     for (size_t k = 0; k < nd; k++)
         f[k] += g->fcache[k];
 }
