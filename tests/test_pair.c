@@ -594,6 +594,27 @@ static void grid_cache_matches_direct(void)
 /* ------------------------------------------------------------------ periodic box */
 
 /* Two particles near opposite faces interact as if adjacent. */
+/* The minimum-image tests' law: LJ with sigma 0.5, cut at 1.25. */
+static psys_pair_def image_lj(int method)
+{
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = 0.5;
+    def.cutoff = 1.25;
+    def.method = (psys_pair_method)method;
+    return def;
+}
+
+/* An empty system in the periodic box [0, 10)^dim. */
+static psys_system *boxed_10(int dim)
+{
+    psys_system *a = make_system(dim);
+    double lo[3] = {0, 0, 0}, hi[3] = {10, 10, 10};
+    bool per[3] = {true, true, true};
+    CHECK(psys_system_set_box(a, lo, hi, per) == PSYS_OK);
+    return a;
+}
+
 /* Partners more than 1.5 boxes apart (positions not wrapped into the box,
  * as a solver's stage states may be): the vectorised loops then take the
  * general image formula; the forces equal the pair's in open space. */
@@ -602,15 +623,8 @@ static void minimum_image_far(void)
     for (int dim = 2; dim <= 3; dim++)
         for (int method = PSYS_PAIR_DIRECT; method <= PSYS_PAIR_GRID; method++)
             for (int shift = -3; shift <= 3; shift += 6) {
-                psys_pair_def def = psys_pair_def_default();
-                def.law = PSYS_PAIR_LENNARD_JONES;
-                def.sigma = 0.5;
-                def.cutoff = 1.25;
-                def.method = (psys_pair_method)method;
-                psys_system *a = make_system(dim);
-                double lo[3] = {0, 0, 0}, hi[3] = {10, 10, 10};
-                bool per[3] = {true, true, true};
-                CHECK(psys_system_set_box(a, lo, hi, per) == PSYS_OK);
+                psys_pair_def def = image_lj(method);
+                psys_system *a = boxed_10(dim);
                 /* 0.6 apart through the x faces, the second particle 3 boxes off */
                 double p0[3] = {0.2, 5, 5}, p1[3] = {9.6 + 10.0 * shift, 5, 5};
                 add(a, p0, NULL, 1);
@@ -638,16 +652,9 @@ static void minimum_image(void)
         for (int method = PSYS_PAIR_DIRECT; method <= PSYS_PAIR_GRID; method++)
             for (int sep = 0; sep < 2; sep++) {
                 double gap = sep ? 0.6 : 0.45; /* σ = 0.5: 0.6 attracts (past 0.561), 0.45 repels */
-                psys_pair_def def = psys_pair_def_default();
-                def.law = PSYS_PAIR_LENNARD_JONES;
-                def.sigma = 0.5;
-                def.cutoff = 1.25;
-                def.method = (psys_pair_method)method;
+                psys_pair_def def = image_lj(method);
                 /* across the x faces of a box [0, 10)^dim */
-                psys_system *a = make_system(dim);
-                double lo[3] = {0, 0, 0}, hi[3] = {10, 10, 10};
-                bool per[3] = {true, true, true};
-                CHECK(psys_system_set_box(a, lo, hi, per) == PSYS_OK);
+                psys_system *a = boxed_10(dim);
                 double p0[3] = {0.2, 5, 5}, p1[3] = {10.2 - gap, 5, 5};
                 add(a, p0, NULL, 1);
                 add(a, p1, NULL, 1);
