@@ -36,7 +36,7 @@ typedef struct springs {
     size_t nm, mcap;  /* muscles, compact: spring, amplitude, omega, phase */
     uint32_t *midx;
     double *mamp, *momega, *mphase;
-    const psys_system *owner; /* for its thread count */
+    const psys_system *owner; /* for its particle count (the SoA scratch) */
     unsigned version;         /* changes with every change of the spring set */
     /* The evaluation plan (springs_plan): springs regrouped into runs of
      * equal index offset and consecutive first particles, so that the force
@@ -590,17 +590,13 @@ static void springs_partition(springs *s, size_t np, int T)
     s->part_np = np;
 }
 
-static int springs_threads(const springs *s)
+/* Threads for the spring loop: the evaluation's, for sets large enough. */
+static int springs_threads(const springs *s, const psys_force_eval *e)
 {
-#ifdef _OPENMP
     if (s->n < SPRING_PARALLEL_MIN)
         return 1;
-    int T = s->owner && s->owner->threads > 0 ? s->owner->threads : omp_get_max_threads();
+    int T = e->threads;
     return T < 1 ? 1 : T > SPRING_MAX_THREADS ? SPRING_MAX_THREADS : T;
-#else
-    (void)s;
-    return 1;
-#endif
 }
 
 static void springs_apply(void *data, const psys_force_eval *e, double *f)
@@ -613,7 +609,7 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
     }
     for (size_t m = 0; m < s->nm; m++)
         s->prest[s->pos[s->midx[m]]] = rest[s->midx[m]];
-    int T = springs_threads(s);
+    int T = springs_threads(s, e);
     if (T > 1 && e->n > 0) {
         springs_partition(s, e->n, T);
         if (!s->part_ok)
