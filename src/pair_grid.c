@@ -154,19 +154,20 @@ static void sort_indices(uint32_t *a, size_t n, uint32_t *tmp)
 /* Candidates t in [t0, t1) of cell_x/cell_list against the position xs:
  * those within rl2 (and j != i, or j > i for half lists) are written from
  * out[cnt] on while they fit in room, and counted past it; returns the new
- * count. The same test, on the same numbers, in every variant. */
+ * count. slow (NULL: none) marks the axes whose distances go through the
+ * minimum image m (periodic axes of fewer than five cells). The same test,
+ * on the same numbers, in every variant. */
 PAIR_INLINE size_t scan_plain(const pair_grid *g, const double *xs, size_t i, uint32_t t0, uint32_t t1,
-                              uint32_t *out, size_t cnt, size_t room, double rl2, const bool half, const int d)
+                              uint32_t *out, size_t cnt, size_t room, double rl2, const bool half, const int d,
+                              const pair_image *m, const bool *slow)
 {
-    const double *c0 = g->cell_x, *c1 = c0 + g->cx_stride, *c2 = c1 + g->cx_stride;
     for (uint32_t t = t0; t < t1; t++) {
         uint32_t j = g->cell_list[t];
-        double dx = xs[0] - c0[t], r2 = 0;
-        r2 += dx * dx;
-        dx = xs[1] - c1[t];
-        r2 += dx * dx;
-        if (d == 3) {
-            dx = xs[2] - c2[t];
+        double r2 = 0;
+        for (int k = 0; k < d; k++) {
+            double dx = xs[k] - g->cell_x[(size_t)k * g->cx_stride + t];
+            if (slow && slow[k])
+                dx = pair_delta(m, k, dx);
             r2 += dx * dx;
         }
         if (cnt < room)
@@ -206,8 +207,8 @@ __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g,
         _mm256_storeu_si256((__m256i *)(out + cnt), _mm512_cvtepi64_epi32(_mm512_maskz_compress_epi64(ok, j)));
         cnt += (size_t)__builtin_popcount((unsigned)ok);
     }
-    return d == 3 ? scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 3)
-                  : scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 2);
+    return d == 3 ? scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 3, NULL, NULL)
+                  : scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 2, NULL, NULL);
 }
 #endif
 
@@ -298,7 +299,6 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
                 ad2[k][a] = dist * dist;
             }
     }
-    const double *c0 = g->cell_x;
     size_t cnt = 0;
     const int nz = d == 3 ? sc->n[2] : 1;
     for (int a2 = 0; a2 < nz; a2++) {
@@ -319,19 +319,8 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
                         continue;
                     const size_t cell = row + (size_t)xx;
                     const double xs[3] = {xi[0] - img[0][a0], xi[1] - img[1][a1], d == 3 ? xi[2] - img[2][a2] : 0};
-                    for (uint32_t t = g->cell_start[cell], te = g->cell_start[cell + 1]; t < te; t++) {
-                        uint32_t j = g->cell_list[t];
-                        double r2 = 0;
-                        for (int k = 0; k < d; k++) {
-                            double dx = xs[k] - c0[(size_t)k * g->cx_stride + t];
-                            if (slow[k])
-                                dx = pair_delta(m, k, dx);
-                            r2 += dx * dx;
-                        }
-                        if (cnt < room)
-                            out[cnt] = j;
-                        cnt += (r2 < rl2) & (half ? j > i : j != i);
-                    }
+                    cnt = scan_plain(g, xs, i, g->cell_start[cell], g->cell_start[cell + 1], out, cnt, room, rl2,
+                                     half, d, m, slow);
                 }
                 continue;
             }
@@ -354,7 +343,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
                     cnt = scan_avx512(g, xs, i, t0, t1, out, cnt, room, rl2, half, d);
                 else
 #endif
-                    cnt = scan_plain(g, xs, i, t0, t1, out, cnt, room, rl2, half, d);
+                    cnt = scan_plain(g, xs, i, t0, t1, out, cnt, room, rl2, half, d, NULL, NULL);
                 a0 = e0;
             }
         }
