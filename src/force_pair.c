@@ -163,7 +163,8 @@ static const double *pair_weights(pair_force *p, const psys_force_eval *e, bool 
  * in ascending i, serial callers only). */
 PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, const pair_image *m,
                               const double *x, const double *w, size_t n, size_t b, const bool want_f, double *f,
-                              const bool want_u, double *ep, double *total, const unsigned char *mark)
+                              const bool want_u, double *ep, double *total, const unsigned char *mark,
+                              const bool vec)
 {
     size_t i0 = b * DIRECT_IB, i1 = i0 + DIRECT_IB < n ? i0 + DIRECT_IB : n;
     if (mark) { /* MPI (mpi.c): only the rows this rank owns */
@@ -181,8 +182,7 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
         for (size_t i = i0; i < i1; i++) {
             if (mark && !mark[i])
                 continue;
-            if (want_f && !want_u && law != PSYS_PAIR_USER
-                && (w || (law != PSYS_PAIR_GRAVITY && law != PSYS_PAIR_COULOMB)))
+            if (vec) /* forces only, pair_can_vectorise held */
                 pair_row_forces(p, law, d, m, w, i, NULL, j0, j1 - j0, false, acc[i - i0]);
             else
                 pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
@@ -203,8 +203,8 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
     }
 }
 
-/* vec: p->xsoa holds the positions (pair_soa_positions), so forces may go
- * through the vectorised loop. */
+/* vec: pair_can_vectorise held and p->xsoa holds the positions
+ * (pair_soa_positions), so forces may go through the vectorised loop. */
 typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                           double *f, double *ep, double *total, int nt, const unsigned char *mark, bool vec);
 
@@ -213,7 +213,7 @@ typedef void (*direct_fn)(const pair_force *p, const pair_image *m, const double
     PAIR_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, \
                                  size_t n, size_t b, double *f, const unsigned char *mark)                   \
     {                                                                                                        \
-        direct_block(p, LAW, D, m, x, w, n, b, true, f, false, NULL, NULL, mark);                            \
+        direct_block(p, LAW, D, m, x, w, n, b, true, f, false, NULL, NULL, mark, true);                      \
     }
 typedef void (*dblock_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                           size_t b, double *f, const unsigned char *mark);
@@ -246,7 +246,7 @@ static const dblock_fn dblock_fns[4][2] = VEC_TABLE(dblock);
             if (fast)                                                                                        \
                 fast(p, m, x, w, n, b, f, mark);                                                             \
             else                                                                                             \
-                direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark);                          \
+                direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark, false);                   \
         }                                                                                                    \
     }
 
@@ -433,8 +433,7 @@ static void direct_eval(const pair_force *p, const pair_image *m, const double *
 {
     int nt = ep || !want_u ? pair_threads(p, (double)n * (double)n) : 1;
     const unsigned char *mark = want_u ? NULL : psys__dist_mark(p->sys);
-    /* not in the fallback without storage (the SoA copy may be missing) */
-    const bool vec = !want_u && p->xsoa && n <= p->cap;
+    const bool vec = !want_u && pair_can_vectorise(p, w, n);
     if (vec)
         pair_soa_positions(p, x, n, nt);
     direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt, mark, vec);
@@ -515,8 +514,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             p->stats.partial++;
         }
     }
-    if (compute && !g->half && p->law != PSYS_PAIR_USER
-        && (w || (p->law != PSYS_PAIR_GRAVITY && p->law != PSYS_PAIR_COULOMB))) {
+    if (compute && !g->half && pair_can_vectorise(p, w, n)) {
         pair_soa_positions(p, x, n, nt);
         grid_rows(p, m, w, n, mark, g->fcache, nt);
     }

@@ -152,8 +152,9 @@ PAIR_INLINE double pair_delta(const pair_image *m, int k, double dx)
 
 /* pair_delta with the image's tests folded into per-axis numbers, for
  * vectorised loops: hl[k] = half the box length on an active periodic axis,
- * +inf otherwise (never exceeded), ln[k] the length (1 where unused). The
- * same result as pair_delta for every dx, NaN included. */
+ * +inf otherwise (never exceeded), ln[k] the length, il[k] its inverse (1
+ * where unused), fr[k] 1.5 lengths (+inf where unused). With exact,
+ * pair_delta_folded gives pair_delta's result for every dx, NaN included. */
 PAIR_INLINE void pair_image_fold(const pair_image *m, double hl[3], double ln[3], double il[3], double fr[3])
 {
     for (int k = 0; k < 3; k++) {
@@ -259,15 +260,7 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
     *uacc = us;
 }
 
-/* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
- * partners: the pair forces g·dx, computed independently (the loop
- * vectorises), then their sum in list order. The operations per pair and
- * the order of the sum are those of pair_gather_list, so the bits are the
- * same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
- * the index range [j0, j0 + nj) without i (pair_gather_range's sum).
- * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
- * none for the other laws. */
-#define ROW_BLOCK 128
+#define ROW_BLOCK 128 /* partners per pass of pair_row_forces */
 
 /* Pass one of pair_row_forces over partners t < nb: c_k[t] = g·dx_k. With
  * exact false the minimum image takes the one-box shortcut, and the return
@@ -307,6 +300,14 @@ PAIR_INLINE bool pair_row_terms(const pair_force *pk, const int law, const int d
     return far != 0;
 }
 
+/* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
+ * partners: the pair forces g·dx, computed independently (the loop
+ * vectorises), then their sum in list order. The operations per pair and
+ * the order of the sum are those of pair_gather_list, so the bits are the
+ * same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
+ * the index range [j0, j0 + nj) without i (pair_gather_range's sum).
+ * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
+ * none for the other laws. */
 PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d, const pair_image *m,
                                  const double *restrict w, size_t i, const uint32_t *restrict js, size_t j0,
                                  size_t nj, const bool list, double *acc)
@@ -354,6 +355,15 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
     acc[1] = a1;
     if (d == 3)
         acc[2] = a2;
+}
+
+/* Whether forces of n particles may go through pair_row_forces: a built-in
+ * law, its weights present, and the SoA copy of the positions big enough
+ * (not so in the fallback after storage failed to grow). */
+PAIR_INLINE bool pair_can_vectorise(const pair_force *p, const double *w, size_t n)
+{
+    const bool weighted = p->law == PSYS_PAIR_GRAVITY || p->law == PSYS_PAIR_COULOMB;
+    return p->law != PSYS_PAIR_USER && (w || !weighted) && p->xsoa && n <= p->cap;
 }
 
 /* Fill p->xsoa from the particle-major positions x (n particles). */
