@@ -799,9 +799,41 @@ static void solver_threads_same_bits(void)
     }
 }
 
+/* lo_deriv, but NaN at components 70,000 and 90,000. */
+static psys_status lo_deriv_nan(void *ctx, double t, const double *y, double *yd)
+{
+    psys_status st = lo_deriv(ctx, t, y, yd);
+    yd[90000] = NAN;
+    yd[70000] = NAN;
+    return st;
+}
+
+/* The failed step names the first non-finite component on any thread count
+ * (the finite check is split among threads). */
+static void nonfinite_index_threads(void)
+{
+    const size_t n = 100000;
+    for (int threads = 1; threads <= 3; threads += 2) {
+        longode o = {n, 0, calloc(n, sizeof(double))};
+        CHECK(o.y != NULL);
+        if (!o.y)
+            return;
+        psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
+                        .set_time = lo_set_time, .derivative = lo_deriv_nan};
+        psys_solver *s = make_solver("euler", &ode);
+        CHECK(psys_solver_set_threads(s, threads) == PSYS_OK);
+        CHECK(psys_solver_step(s, 0.05, NULL) == PSYS_ERR_NONFINITE);
+        CHECK(psys_solver_bad_component(s) == 70000);
+        CHECK(o.t == 0 && o.y[70000] == 0); /* the state is unchanged */
+        psys_solver_destroy(s);
+        free(o.y);
+    }
+}
+
 static const check_case cases[] = {
     {"registry", registry},
     {"solver_threads_same_bits", solver_threads_same_bits},
+    {"nonfinite_index_threads", nonfinite_index_threads},
     {"symplectic_needs_second_order", symplectic_needs_second_order},
     {"custom_ode_decay", custom_ode_decay},
     {"custom_ode_symplectic", custom_ode_symplectic},
