@@ -30,6 +30,8 @@ static void drag_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J
         psys_jacobian_add(J, i, i, NULL, blk);
 }
 
+double psys__drag_kd(const void *data) { return ((const drag *)data)->kd; }
+
 const psys_force_class psys_drag_class = {"drag", drag_apply, NULL, drag_jacobian, free};
 
 psys_status psys_system_add_drag(psys_system *sys, double kd)

@@ -57,6 +57,8 @@ static void gravity_jacobian(void *data, const psys_force_eval *e, psys_jacobian
     (void)J;
 }
 
+const double *psys__gravity_g(const void *data) { return ((const gravity *)data)->g; }
+
 const psys_force_class psys_gravity_class = {"gravity", gravity_apply, gravity_energy, gravity_jacobian, free};
 
 psys_status psys_system_add_gravity(psys_system *sys, const double *g)

@@ -473,8 +473,13 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         return;
     }
     const unsigned char *own = psys__dist_mark(p->sys);
-    if (own) { /* MPI (mpi.c): this rank's rows only, past the cache; the others are not read */
-        fn(p, m, x, w, n, own, g->fcache, nt);
+    if (own) { /* MPI (mpi.c, mpi_domain.c): this rank's rows only, past the cache; the others are not read */
+        if (!g->half && pair_can_vectorise(p, w, n)) {
+            pair_soa_positions(p, x, n, nt);
+            grid_rows(p, m, w, n, own, g->fcache, nt);
+        } else {
+            fn(p, m, x, w, n, own, g->fcache, nt);
+        }
         g->cache_ok = false;
         for (size_t k = 0; k < nd; k++)
             f[k] += g->fcache[k];
@@ -593,6 +598,13 @@ static double pair_eval(pair_force *p, const psys_force_eval *e, bool want_u, do
 }
 
 static void pair_apply(void *data, const psys_force_eval *e, double *f) { pair_eval(data, e, false, f); }
+
+void psys__pair_invalidate(void *data)
+{
+    pair_force *p = data;
+    p->grid.built_n = 0;
+    p->grid.cache_ok = false;
+}
 
 static double pair_energy(void *data, const psys_force_eval *e) { return pair_eval(data, e, true, NULL); }
 

@@ -119,6 +119,8 @@ struct psys_system {
     psys__box box;         /* simulation box (box.c) */
     int threads;           /* threads for parallel force evaluation, 0 = OpenMP default */
     struct psys__dist *dist; /* MPI decomposition (mpi.c, PSYS_MPI builds), NULL = serial */
+    const unsigned char *own_mark; /* MPI domain decomposition (mpi_domain.c): 1 for the particles this
+                                      rank owns (pair rows to compute), 0 for ghosts; NULL = all */
     psys_error err;
 };
 
@@ -132,8 +134,34 @@ void psys__dist_free(psys__dist *d);
 bool psys__dist_begin(const psys_system *s, const double *x);
 /** Collective: give every rank the owners' rows of f. */
 psys_status psys__dist_finish(const psys_system *s, double *f);
-/** During a split evaluation, 1 for the rows this rank computes; NULL otherwise. */
+/** During a split evaluation (or always, in a domain's local system), 1 for
+ *  the rows this rank computes; NULL otherwise. */
 const unsigned char *psys__dist_mark(const psys_system *s);
+/** A run's particles spread over ranks (mpi_domain.c). */
+typedef struct psys__domain psys__domain;
+/** Free a domain decomposition, its local system and solver (NULL is fine). */
+void psys__domain_free(psys__domain *D);
+/** Collective: one step of at most h_max of the local particles (as
+ *  psys_system_advance); every rank returns the same status. */
+psys_status psys__domain_advance(psys__domain *D, double h_max, double *h_taken);
+/** The local system (owned particles and ghosts). */
+psys_system *psys__domain_local(const psys__domain *D);
+/** The solver stepping the local system (replaced when particles migrate). */
+psys_solver *psys__domain_solver(const psys__domain *D);
+/** After a failed step: the global index of the first particle that became non-finite. */
+size_t psys__domain_bad_particle(const psys__domain *D);
+/** Steps the solver rejected, summed over the solvers the domain has had. */
+size_t psys__domain_rejected(const psys__domain *D);
+/** Message of the domain's last failure. */
+const char *psys__domain_last_error(const psys__domain *D);
+/** Particles this rank owns, holds as ghosts; redistributions so far. */
+size_t psys__domain_owned(const psys__domain *D);
+size_t psys__domain_ghosts(const psys__domain *D);
+size_t psys__domain_redistributions(const psys__domain *D);
+/** Collective: rank 0's g gets every particle's state and the clock. */
+psys_status psys__domain_gather(psys__domain *D, psys_system *g);
+/** Free g's particles and force objects (ranks other than 0 after decomposing). */
+void psys__domain_release(psys_system *g);
 #else
 static inline const unsigned char *psys__dist_mark(const psys_system *s)
 {
@@ -162,6 +190,14 @@ struct psys_jacobian {
     void *ctx;
     bool definite; /* see psys_jacobian_wants_definite */
 };
+
+/** Gravity object's acceleration (force_gravity.c). */
+const double *psys__gravity_g(const void *data);
+/** Drag object's coefficient (force_drag.c). */
+double psys__drag_kd(const void *data);
+/** A pair force's particles were replaced (not just moved): rebuild its lists
+ *  and forget its cached forces at the next evaluation (force_pair.c). */
+void psys__pair_invalidate(void *data);
 
 /* ---- spring set internals (force_spring.c) ---- */
 /** Create an empty spring set of the system owner (whose thread count it uses). */

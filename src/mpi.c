@@ -94,6 +94,8 @@ size_t psys_system_comm_owned(const psys_system *s) { return s->dist ? s->dist->
 
 const unsigned char *psys__dist_mark(const psys_system *s)
 {
+    if (s->own_mark)
+        return s->own_mark;
     return s->dist && s->dist->active ? s->dist->mark : NULL;
 }
 

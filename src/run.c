@@ -24,6 +24,9 @@ struct psys_run {
     double frame_dt;       /* rk45: output spacing every·dt */
     double next_frame_t;   /* rk45: next output time */
     bool frame_now;
+#ifdef PSYS_MPI
+    psys__domain *dd;      /* the particles spread over MPI ranks (mpi_domain.c); sys is then its local system */
+#endif
 };
 
 psys_run *psys_run_create(psys_scene *scene, psys_error *err)
@@ -105,6 +108,13 @@ void psys_run_destroy(psys_run *r)
 {
     if (!r)
         return;
+#ifdef PSYS_MPI
+    if (r->dd) {
+        psys__domain_free(r->dd); /* its solver and local system */
+        free(r);
+        return;
+    }
+#endif
     psys_solver_destroy(r->solver);
     free(r);
 }
@@ -136,6 +146,12 @@ static void nonfinite_message(psys_run *r, psys_error *err, double t_from)
 {
     size_t p = psys_system_particle_of_component(r->sys, psys_solver_bad_component(r->solver));
     const char *id = psys_system_particle_id(r->sys, p);
+#ifdef PSYS_MPI
+    if (r->dd) { /* the particle's global index; its id is in the scene's system (rank 0) */
+        p = psys__domain_bad_particle(r->dd);
+        id = psys_system_particle_id(r->scene->sys, p);
+    }
+#endif
     char who[300];
     if (id)
         snprintf(who, sizeof who, "particle %zu (\"%s\")", p, id);
@@ -144,6 +160,29 @@ static void nonfinite_message(psys_run *r, psys_error *err, double t_from)
     psys__fail(err, PSYS_ERR_NONFINITE,
                "the state became non-finite at step %lld (from t = %.17g), %s; stopped at the last good state",
                r->step + 1, t_from, who);
+}
+
+/* One step of the system (psys_system_advance), or of this rank's particles. */
+static psys_status advance(psys_run *r, double h_max, double *h_taken)
+{
+#ifdef PSYS_MPI
+    if (r->dd) {
+        psys_status st = psys__domain_advance(r->dd, h_max, h_taken);
+        r->solver = psys__domain_solver(r->dd); /* replaced when particles migrate */
+        return st;
+    }
+#endif
+    return psys_system_advance(r->sys, r->solver, h_max, h_taken);
+}
+
+/* The failed step's message (the domain's when decomposed). */
+static const char *step_error(const psys_run *r)
+{
+#ifdef PSYS_MPI
+    if (r->dd)
+        return psys__domain_last_error(r->dd);
+#endif
+    return psys_solver_last_error(r->solver);
 }
 
 psys_status psys_run_step(psys_run *r, psys_error *err)
@@ -158,13 +197,13 @@ psys_status psys_run_step(psys_run *r, psys_error *err)
         h = last_of_duration ? r->t_end - t : r->dt;
         if (!(h > 0))
             h = r->dt * 1e-12; /* degenerate: duration ended within rounding of the previous step */
-        psys_status st = psys_system_advance(r->sys, r->solver, h, NULL);
+        psys_status st = advance(r, h, NULL);
         if (st == PSYS_ERR_NONFINITE) {
             nonfinite_message(r, err, t);
             return st;
         }
         if (st != PSYS_OK)
-            return psys__fail(err, st, "step %lld failed: %s", r->step + 1, psys_solver_last_error(r->solver));
+            return psys__fail(err, st, "step %lld failed: %s", r->step + 1, step_error(r));
         r->step++;
         if (last_of_duration) {
             psys_system_set_time(r->sys, r->t_end);
@@ -183,13 +222,13 @@ psys_status psys_run_step(psys_run *r, psys_error *err)
     if (r->by_duration && r->t_end < target)
         target = r->t_end;
     double h_taken;
-    psys_status st = psys_system_advance(r->sys, r->solver, target - t, &h_taken);
+    psys_status st = advance(r, target - t, &h_taken);
     if (st == PSYS_ERR_NONFINITE) {
         nonfinite_message(r, err, t);
         return st;
     }
     if (st != PSYS_OK)
-        return psys__fail(err, st, "step %lld failed: %s", r->step + 1, psys_solver_last_error(r->solver));
+        return psys__fail(err, st, "step %lld failed: %s", r->step + 1, step_error(r));
     r->step++;
     if (h_taken >= target - t) {
         psys_system_set_time(r->sys, target); /* land exactly, not t + h rounded */
@@ -215,3 +254,64 @@ psys_resume_state psys_run_resume_state(const psys_run *r)
     rs.next_h = psys_solver_next_step(r->solver);
     return rs;
 }
+
+#ifdef PSYS_MPI
+#include "psys/psys_mpi.h"
+
+/* mpi_domain.c (needs MPI_Comm, so not in internal.h) */
+psys_status psys__domain_create(psys_system *g, const char *integrator, double tol, double cg_tol, int cg_maxit,
+                                double h_next, MPI_Comm comm, psys__domain **out, psys_error *err);
+
+psys_status psys_run_decompose(psys_run *r, MPI_Comm comm, psys_error *err)
+{
+    int size = 1;
+    if (comm == MPI_COMM_NULL || MPI_Comm_size(comm, &size) != MPI_SUCCESS)
+        return psys__fail(err, PSYS_ERR_INVALID, "no MPI communicator");
+    if (r->dd)
+        return psys__fail(err, PSYS_ERR_INVALID, "the run is already decomposed");
+    if (size <= 1) {
+        psys__ok(err);
+        return PSYS_OK;
+    }
+    const psys_settings *set = &r->scene->settings;
+    psys__domain *D = NULL;
+    psys_status st = psys__domain_create(r->sys, set->integrator, set->tolerance, set->cg_tolerance,
+                                         set->cg_max_iterations > 1000000000 ? 1000000000 : (int)set->cg_max_iterations,
+                                         psys_solver_next_step(r->solver), comm, &D, err);
+    if (st != PSYS_OK)
+        return st;
+    psys_solver_destroy(r->solver);
+    r->dd = D;
+    r->sys = psys__domain_local(D);
+    r->solver = psys__domain_solver(D);
+    int rank = 0;
+    MPI_Comm_rank(comm, &rank);
+    if (rank != 0)
+        psys__domain_release(r->scene->sys); /* only rank 0 keeps the whole system, for output */
+    psys__ok(err);
+    return PSYS_OK;
+}
+
+psys_status psys_run_gather(psys_run *r, psys_error *err)
+{
+    if (!r->dd) {
+        psys__ok(err);
+        return PSYS_OK;
+    }
+    psys_status st = psys__domain_gather(r->dd, r->scene->sys);
+    if (st != PSYS_OK)
+        return psys__fail(err, st, "%s", psys__domain_last_error(r->dd));
+    psys__ok(err);
+    return PSYS_OK;
+}
+
+void psys_run_domain_counts(const psys_run *r, size_t *owned, size_t *ghosts, size_t *redistributions)
+{
+    if (owned)
+        *owned = r->dd ? psys__domain_owned(r->dd) : 0;
+    if (ghosts)
+        *ghosts = r->dd ? psys__domain_ghosts(r->dd) : 0;
+    if (redistributions)
+        *redistributions = r->dd ? psys__domain_redistributions(r->dd) : 0;
+}
+#endif

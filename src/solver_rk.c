@@ -211,7 +211,14 @@ static double error_norm(const psys_solver *s, const psys__tableau *tab, double 
         double r = err / scale;
         sum += r * r;
     }
-    double norm = sqrt(sum / (double)(s->n ? s->n : 1));
+    double count = (double)s->n;
+    if (s->ode.reduce_sum) { /* a split state: the whole state's sum and count */
+        double v[2] = {sum, count};
+        s->ode.reduce_sum(s->ode.ctx, v, 2);
+        sum = v[0];
+        count = v[1];
+    }
+    double norm = sqrt(sum / (count > 0 ? count : 1.0));
     return isfinite(norm) ? norm : INFINITY;
 }
 

@@ -1,9 +1,14 @@
 /* The MPI library API (docs/mpi.md), run under mpiexec by tests/mpi.cmake:
  * psys_system_set_comm splits the pair-force rows among the ranks (every
  * particle owned by exactly one rank) and the forces equal the serial ones
- * bit for bit, for the direct, grid and Barnes–Hut methods, with springs. */
+ * bit for bit, for the direct, grid and Barnes–Hut methods, with springs.
+ * With a scene (argv[1], the 2,048-atom melt): psys_run_decompose spreads the
+ * particles (each owned once, balanced, fewer than all held per rank), the
+ * state gathered on rank 0 equals the serial run's bit for bit (verlet) or
+ * to rounding (rk45), after particles have migrated. */
 #include "psys/psys_mpi.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -53,7 +58,95 @@ static psys_system *make(psys_pair_method method)
     return s;
 }
 
-int main(void)
+/* Steps of the scene's run at path, serial on every rank and decomposed over
+ * MPI_COMM_WORLD, compared on rank 0 at two gathers. tol 0: bit for bit. */
+static void domain_case(const char *path, const char *integrator, double tol)
+{
+    int rank, size;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    psys_error err;
+    psys_scene *ss = psys_scene_load_file(path, &err), *ds = psys_scene_load_file(path, &err);
+    CHECK(ss && ds);
+    if (!ss || !ds)
+        return;
+    snprintf(psys_scene_settings(ss)->integrator, sizeof psys_scene_settings(ss)->integrator, "%s", integrator);
+    snprintf(psys_scene_settings(ds)->integrator, sizeof psys_scene_settings(ds)->integrator, "%s", integrator);
+    psys_system *ssys = psys_scene_system(ss), *dsys = psys_scene_system(ds);
+    psys_system_set_threads(ssys, 1); /* a rank per core: OpenMP's default would oversubscribe */
+    psys_system_set_threads(dsys, 1);
+    const size_t n = psys_system_count(ssys), nd = 3 * n;
+    psys_run *sr = psys_run_create(ss, &err), *dr = psys_run_create(ds, &err);
+    CHECK(sr && dr);
+    CHECK(psys_run_decompose(dr, MPI_COMM_WORLD, &err) == PSYS_OK);
+    size_t owned = 0, ghosts = 0, redis = 0;
+    psys_run_domain_counts(dr, &owned, &ghosts, &redis);
+    if (size > 1) {
+        unsigned long long own = owned, total = 0, held = owned + ghosts, most = 0;
+        MPI_Allreduce(&own, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+        MPI_Allreduce(&held, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
+        CHECK(total == n);                                   /* each particle owned by one rank */
+        CHECK((double)owned < 1.25 * (double)n / size);      /* balanced slabs */
+        if (size >= 4)
+            CHECK(most < n);                                 /* no rank holds every particle */
+        if (rank != 0)
+            CHECK(psys_system_count(dsys) == 0);             /* the scene's copy was released */
+    }
+    for (int half = 0; half < 2; half++) {
+        for (int k = 0; k < 30; k++) {
+            CHECK(psys_run_step(sr, &err) == PSYS_OK);
+            CHECK(psys_run_step(dr, &err) == PSYS_OK);
+        }
+        CHECK(psys_run_gather(dr, &err) == PSYS_OK);
+        if (rank == 0) {
+            const double *xs = psys_system_positions(ssys), *xd = psys_system_positions(dsys);
+            const double *vs = psys_system_velocities(ssys), *vd = psys_system_velocities(dsys);
+            if (tol == 0) {
+                CHECK(memcmp(xs, xd, nd * sizeof(double)) == 0);
+                CHECK(memcmp(vs, vd, nd * sizeof(double)) == 0);
+                CHECK(psys_system_time(ssys) == psys_system_time(dsys));
+            } else {
+                double worst = 0;
+                for (size_t i = 0; i < nd; i++)
+                    worst = fmax(worst, fmax(fabs(xs[i] - xd[i]), fabs(vs[i] - vd[i])));
+                CHECK(worst <= tol);
+                CHECK(fabs(psys_system_time(ssys) - psys_system_time(dsys)) <= tol);
+            }
+        }
+    }
+    psys_run_domain_counts(dr, &owned, &ghosts, &redis);
+    if (size > 1)
+        CHECK(redis >= 3); /* the first cut and at least two migrations */
+    psys_run_destroy(sr);
+    psys_run_destroy(dr);
+    psys_scene_destroy(ss);
+    psys_scene_destroy(ds);
+}
+
+/* A scene the decomposition cannot split is refused and its run left alone. */
+static void domain_refused(void)
+{
+    const char *text = "{\"psys\":1,\"dim\":2,\"dt\":0.01,\"steps\":3,\"particles\":[{\"id\":\"a\",\"x\":[0,0]},"
+                       "{\"id\":\"b\",\"x\":[1,0]}],\"forces\":[{\"type\":\"spring\",\"a\":\"a\",\"b\":\"b\",\"ks\":1}]}";
+    psys_error err;
+    psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
+    CHECK(sc != NULL);
+    if (!sc)
+        return;
+    psys_run *r = psys_run_create(sc, &err);
+    int size;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    psys_status st = psys_run_decompose(r, MPI_COMM_WORLD, &err);
+    CHECK(st == (size > 1 ? PSYS_ERR_UNSUPPORTED : PSYS_OK));
+    if (size > 1)
+        CHECK(strstr(err.message, "springs") != NULL);
+    CHECK(psys_system_count(psys_scene_system(sc)) == 2);
+    CHECK(psys_run_step(r, &err) == PSYS_OK); /* still the serial run */
+    psys_run_destroy(r);
+    psys_scene_destroy(sc);
+}
+
+int main(int argc, char **argv)
 {
     MPI_Init(NULL, NULL);
     int rank, size;
@@ -88,6 +181,12 @@ int main(void)
         free(dist);
         psys_system_destroy(s);
     }
+    if (argc > 1) {
+        domain_case(argv[1], "verlet", 0);
+        domain_case(argv[1], "rk4", 0);
+        domain_case(argv[1], "rk45", 1e-9);
+    }
+    domain_refused();
     int fails = check_failures, all = 0;
     MPI_Allreduce(&fails, &all, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
     if (rank == 0)

@@ -41,6 +41,7 @@ typedef struct run_opts {
     const char *dt, *steps, *duration, *integrator, *every, *out, *energy, *render, *threads;
     const char *checkpoint, *resume;
     const char *size, *fps, *camera, *radius, *plot;
+    const char *mpi; /* --mpi: auto, domain or replicated */
     int quiet;
 } run_opts;
 
@@ -82,7 +83,8 @@ static int parse_args(int argc, char **argv, run_opts *o)
             || cli_take(argc, argv, &i, "--size", &o->size, &bad) || cli_take(argc, argv, &i, "--fps", &o->fps, &bad)
             || cli_take(argc, argv, &i, "--camera", &o->camera, &bad)
             || cli_take(argc, argv, &i, "--radius", &o->radius, &bad)
-            || cli_take(argc, argv, &i, "--plot", &o->plot, &bad)) {
+            || cli_take(argc, argv, &i, "--plot", &o->plot, &bad)
+            || cli_take(argc, argv, &i, "--mpi", &o->mpi, &bad)) {
             if (bad)
                 return -1;
         } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
@@ -158,6 +160,10 @@ static int apply_flags(const run_opts *o, psys_settings *set, int dim, picture_o
     }
     if (o->threads && parse_int(o->threads, 1, 4096, &n) != 0) {
         cli_error("--threads: must be an integer from 1 to 4096 (got %s)", o->threads);
+        return -1;
+    }
+    if (o->mpi && strcmp(o->mpi, "auto") != 0 && strcmp(o->mpi, "domain") != 0 && strcmp(o->mpi, "replicated") != 0) {
+        cli_error("--mpi: must be auto, domain or replicated (got %s)", o->mpi);
         return -1;
     }
 #define COPY_PATH(flag, field)                                                        \
@@ -701,6 +707,21 @@ static void abort_outputs(outputs *out, outfile *ck, outfile *plot, sink *snk)
     energy_free(&out->plot);
 }
 
+/* Rank 0's system gets the decomposed run's state (collective); 1 on failure. */
+static int gather_state(psys_run *run)
+{
+#ifdef PSYS_MPI
+    psys_error e;
+    if (psys_run_gather(run, &e) != PSYS_OK) {
+        cli_error("%s", e.message);
+        return 1;
+    }
+#else
+    (void)run;
+#endif
+    return 0;
+}
+
 static int run_main(int argc, char **argv)
 {
     run_opts o;
@@ -734,11 +755,22 @@ static int run_main(int argc, char **argv)
         parse_int(o.threads, 1, 4096, &nthreads);
         psys_system_set_threads(sys, (int)nthreads);
     }
+    bool decomposed = false; /* the particles spread over the MPI ranks (psys_run_decompose) */
 #ifdef PSYS_MPI
     if (mpi_size > 1) {
         if (!o.threads)
             psys_system_set_threads(sys, 1); /* a rank per core; --threads asks for more */
-        if (psys_system_set_comm(sys, MPI_COMM_WORLD) != PSYS_OK) {
+        if (!o.mpi || strcmp(o.mpi, "replicated") != 0) {
+            psys_status st = psys_run_decompose(run, MPI_COMM_WORLD, &err);
+            decomposed = st == PSYS_OK;
+            if (st != PSYS_OK && (st != PSYS_ERR_UNSUPPORTED || (o.mpi && strcmp(o.mpi, "domain") == 0))) {
+                cli_error("%s: --mpi domain: %s", source, err.message);
+                psys_run_destroy(run);
+                psys_scene_destroy(scene);
+                return st == PSYS_ERR_UNSUPPORTED ? EXIT_BAD_INPUT : EXIT_RUN_FAILED;
+            }
+        }
+        if (!decomposed && psys_system_set_comm(sys, MPI_COMM_WORLD) != PSYS_OK) {
             cli_error("%s: %s", source, psys_system_last_error(sys));
             psys_run_destroy(run);
             psys_scene_destroy(scene);
@@ -821,10 +853,18 @@ static int run_main(int argc, char **argv)
     const char *render_label = o.render ? "--render" : "output.render";
     if (ren)
         pic_failed = draw_frames(ren, snk, sys, frames_due(&fc, psys_system_time(sys)), render_label);
+    /* Decomposed: rank 0's system has the state only after a gather, at
+     * frames, and at every step when pictures are drawn. */
+    const int gather_each_step = agree(ren != NULL || still);
+    long long gathered = psys_run_step_index(run);
     while (!psys_run_done(run) && agree(!stop_signal && !io_failed && !pic_failed)) {
         if (psys_run_step(run, &err) != PSYS_OK) {
             status = EXIT_RUN_FAILED;
             break;
+        }
+        if (decomposed && (gather_each_step || psys_run_is_frame(run))) {
+            io_failed |= gather_state(run);
+            gathered = psys_run_step_index(run);
         }
         if (psys_run_is_frame(run)) {
             last_written = psys_run_step_index(run);
@@ -837,6 +877,8 @@ static int run_main(int argc, char **argv)
         progress_update(&prog, run, "");
     }
     progress_clear(&prog);
+    if (decomposed && gathered != psys_run_step_index(run))
+        io_failed |= gather_state(run);
     /* The last good state is always the final frame (interrupted or failed runs too). */
     if (psys_run_step_index(run) != last_written)
         io_failed |= write_frame(&out, sys, psys_run_step_index(run));

@@ -79,6 +79,11 @@ typedef struct psys_ode {
      *  the forces at (t, y) into J. Forces that cannot are treated explicitly. */
     psys_status (*jacobian)(void *ctx, double t, const double *y, struct psys_jacobian *J);
     int block;    /**< block size of jacobian (the dimension) */
+    /** Optional (NULL when the state is held whole): for a state split over
+     *  processes (MPI domain decomposition, docs/mpi.md), replace values[0..count),
+     *  this piece's partial sums, by their totals over all pieces. Adaptive
+     *  solvers pass {sum of squared scaled errors, components} through it. */
+    void (*reduce_sum)(void *ctx, double *values, int count);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */

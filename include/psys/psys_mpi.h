@@ -29,6 +29,28 @@ int psys_system_comm_size(const psys_system *sys);
  *  (0 when serial): how the work is split, for tests and benchmarks. */
 size_t psys_system_comm_owned(const psys_system *sys);
 
+/** Spread the run's particles over the ranks of comm (domain decomposition,
+ *  docs/mpi.md): every rank must have created the run from the same scene.
+ *  Each rank then integrates only the particles of its slab of space, with
+ *  ghost copies of the particles within the pair forces' range (and skin),
+ *  and psys_run_step becomes collective. On ranks other than 0 the scene's
+ *  system is emptied (its particles and force objects freed); rank 0's is
+ *  brought up to date only by psys_run_gather. Fails with
+ *  PSYS_ERR_UNSUPPORTED, leaving the run as it was, for scenes whose forces
+ *  couple particles other than through pair forces (springs, behaviour
+ *  functions, mouse springs, user force classes), with controllers or planes,
+ *  or with the implicit-euler solver. A communicator of one rank leaves the
+ *  run serial. Not combinable with psys_system_set_comm on the same system. */
+psys_status psys_run_decompose(psys_run *run, MPI_Comm comm, psys_error *err);
+
+/** Collective: every particle's state and the clock into the scene's system
+ *  on rank 0 (for output); nothing when the run is not decomposed. */
+psys_status psys_run_gather(psys_run *run, psys_error *err);
+
+/** Particles this rank owns and holds as ghosts, and the redistributions so
+ *  far (all 0 when the run is not decomposed). */
+void psys_run_domain_counts(const psys_run *run, size_t *owned, size_t *ghosts, size_t *redistributions);
+
 #ifdef __cplusplus
 }
 #endif

@@ -55,8 +55,46 @@ def granular():
             "particles": parts, "forces": forces,
             "planes": [{"point": [0, 0], "normal": [0, 1], "restitution": 0.3, "friction": 0.2}]}
 
+def lj_melt():
+    # The LAMMPS melt at 2,048 atoms (fcc, density 0.8442, T about 3), long
+    # enough that particles migrate between slabs many times: on 2 and 4
+    # ranks each holds a slab and ghosts of a part of the box only.
+    rnd = random.Random(13)
+    nc, a = 8, (4 / 0.8442) ** (1 / 3)
+    L = nc * a
+    basis = [(0, 0, 0), (0.5, 0.5, 0), (0.5, 0, 0.5), (0, 0.5, 0.5)]
+    parts = []
+    for i in range(nc):
+        for j in range(nc):
+            for k in range(nc):
+                for b in basis:
+                    x = [(i + b[0] + 0.25) * a, (j + b[1] + 0.25) * a, (k + b[2] + 0.25) * a]
+                    v = [rnd.gauss(0, math.sqrt(3.0)) for _ in range(3)]
+                    parts.append({"x": [round(c, 6) for c in x], "v": [round(c, 6) for c in v]})
+    return {"psys": 1, "dim": 3, "integrator": "verlet", "dt": 0.005, "steps": 60,
+            "box": {"lo": [0, 0, 0], "hi": [L, L, L], "periodic": [True, True, True]},
+            "particles": parts,
+            "forces": [{"type": "pair", "law": "lennard-jones", "epsilon": 1, "sigma": 1, "cutoff": 2.5,
+                        "method": "grid", "skin": 0.3}]}
+
+def gas2d():
+    # Free space, 2-D: soft-repulsion grains with gravity and drag, no box,
+    # so the slabs are cut along the particles' extent and re-cut as it grows.
+    rnd = random.Random(17)
+    parts = []
+    for i in range(1600):
+        x = [round(0.05 * (i % 80) + rnd.uniform(-0.01, 0.01), 6), round(0.05 * (i // 80) + rnd.uniform(-0.01, 0.01), 6)]
+        v = [round(rnd.uniform(-0.5, 0.5), 6), round(rnd.uniform(-0.5, 0.5), 6)]
+        parts.append({"x": x, "v": v, "mass": round(0.5 + rnd.random(), 4)})
+    return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.002, "steps": 60,
+            "particles": parts,
+            "forces": [{"type": "gravity", "g": [0, -1]}, {"type": "drag", "kd": 0.01},
+                       {"type": "pair", "law": "soft-repulsion", "k": 200, "radius": 0.06, "method": "grid",
+                        "skin": 0.01}]}
+
 scenes = {"lj-grid": lj_box("grid", "lj-grid"), "lj-direct": lj_box("direct", "lj-direct"),
-          "gravity-direct": galaxy("direct"), "gravity-bh": galaxy("barnes-hut"), "granular": granular()}
+          "gravity-direct": galaxy("direct"), "gravity-bh": galaxy("barnes-hut"), "granular": granular(),
+          "lj-melt": lj_melt(), "gas2d": gas2d()}
 for name, sc in scenes.items():
     with open(name + ".json", "w") as fp:
         json.dump(sc, fp, separators=(",", ":"))

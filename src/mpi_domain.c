@@ -1,0 +1,968 @@
+/* MPI domain decomposition (docs/mpi.md "Distributed memory"): the particles
+ * of a run spread over the ranks of a communicator, each rank holding only
+ * the particles of its slab of space ("owned") and ghost copies of the
+ * particles near its slab. Compiled only with -DPSYS_MPI=ON.
+ *
+ * Decomposition. Slabs along one axis (the longest axis of the box, else of
+ * the particles' bounding box at the start), cut so each holds about n/R
+ * particles: a global histogram of 64·R bins (MPI_Allreduce), cuts at bin
+ * edges. A rank's ghosts are the other ranks' particles within delta of its
+ * slab along the axis (delta = the longest pair-force range + skin; every
+ * particle when a law has no cutoff: the all-gather exchange for direct and
+ * Barnes–Hut gravity and Coulomb). Before every force evaluation each rank
+ * sends its owned particles' positions and velocities to the ranks that
+ * hold them as ghosts (point-to-point, halo exchange).
+ *
+ * Migration. At a redistribution every rank sends each particle it owns to
+ * the rank of the slab it is now in, and copies to the ranks that need it as
+ * a ghost (MPI_Alltoallv); the slabs are re-cut first. It happens between
+ * steps, when the largest displacement since the last one, over all ranks,
+ * reaches a quarter of the skin (two particles then may have closed their
+ * gap by half the skin), and whenever an evaluation inside a step finds two
+ * such displacements could have closed the whole skin: that step is then
+ * abandoned on every rank, the particles redistributed and the step taken
+ * again. Ghost sets are therefore always complete: every pair closer than
+ * the pair range with one owned end has its other end on the rank.
+ *
+ * Same answers. The local system holds its particles in increasing global
+ * index and computes pair-force rows only for the owned particles (the
+ * own_mark of pair.h's methods), each row the serial sum over the same
+ * partners in the same order (pairs beyond the cutoff add exactly nothing);
+ * gravity and drag are per particle. So every owned particle's force, and
+ * every explicit solver's update of it, is bit-identical to the serial run.
+ * rk45's error norm is a sum over the whole state: here it is summed per rank
+ * and combined with MPI_Allreduce, so rk45 trajectories equal the serial ones
+ * to rounding (not bit for bit).
+ *
+ * The library keeps no global state: everything lives in the psys__domain
+ * of one run. */
+#include "internal.h"
+#include "psys/psys_mpi.h"
+
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define DOMAIN_BINS 64  /* histogram bins per rank for the slab cuts */
+#define HALO_TAG 7301
+
+/* One particle on the move: global index, mass, inverse mass, charge,
+ * flags, then x and v. */
+#define REC_HEAD 5
+#define REC_LEN(d) (REC_HEAD + 2 * (size_t)(d))
+
+/* A received record's global index and where it lies, for sorting. */
+struct rec_key {
+    size_t gid, at;
+};
+
+struct psys__domain {
+    MPI_Comm comm;
+    int rank, size, dim;
+    psys_system *local;
+    psys_solver *solver;
+    char integrator[32];
+    double tol, cg_tol, h_next;
+    int cg_maxit;
+    size_t rejected; /* of the solvers already replaced */
+    bool charges;    /* the system has charges: ghosts carry them */
+    /* slabs */
+    int axis;
+    bool periodic;   /* the axis is periodic */
+    bool fixed_range;/* the box gives the histogram's range */
+    double lo, len;  /* histogram range along the axis */
+    double delta;    /* ghost range: < 0 none, INFINITY every particle */
+    double skin;     /* displacements of two particles may add up to less than this */
+    int *bin_rank;   /* size·DOMAIN_BINS */
+    uint64_t *hist;  /* size·DOMAIN_BINS */
+    double *slab_lo, *slab_hi; /* size: the slabs along the axis (lo == hi: empty) */
+    /* local particles, in increasing global index */
+    size_t cap, nloc, nown;
+    size_t *gid;
+    unsigned char *own;
+    double *xref;    /* cap·dim: positions at the last redistribution */
+    double *ybuf;    /* 2·cap·dim: the state an evaluation sees, ghosts filled in */
+    double *ysave;   /* 2·cap·dim: the state before a step */
+    /* halo plan: local indices sent to / received from each rank */
+    int *scount, *rcount;     /* size: particles */
+    size_t *soff, *roff;      /* size + 1 */
+    size_t *sidx, *ridx;
+    size_t scap;
+    double *sbuf, *rbuf;
+    size_t sbuf_cap, rbuf_cap;
+    MPI_Request *req;         /* 2·size */
+    MPI_Status *stat;         /* 2·size (MPI_STATUSES_IGNORE trips GCC's -Wstringop-overflow) */
+    /* migration buffers */
+    int *mcount, *mdispl, *rmcount, *rmdispl; /* size each, in doubles */
+    double *msend, *mrecv;
+    size_t msend_cap, mrecv_cap;
+    struct rec_key *order;    /* sort of received records */
+    size_t order_cap;
+    /* step state */
+    psys_ode inner;           /* the local system's ODE */
+    double dmax;              /* largest owned displacement since the redistribution, all ranks, last evaluation */
+    bool stale;               /* an evaluation found the ghosts could be incomplete */
+    size_t bad;               /* global index of the first non-finite particle of a failed step */
+    size_t redistributions;
+    psys_error err;
+};
+
+psys_system *psys__domain_local(const psys__domain *D) { return D->local; }
+psys_solver *psys__domain_solver(const psys__domain *D) { return D->solver; }
+size_t psys__domain_bad_particle(const psys__domain *D) { return D->bad; }
+size_t psys__domain_rejected(const psys__domain *D)
+{
+    return D->rejected + (D->solver ? psys_solver_rejected_steps(D->solver) : 0);
+}
+
+void psys__domain_free(psys__domain *D)
+{
+    if (!D)
+        return;
+    psys_solver_destroy(D->solver);
+    psys_system_destroy(D->local);
+    if (D->comm != MPI_COMM_NULL)
+        MPI_Comm_free(&D->comm);
+    free(D->bin_rank);
+    free(D->hist);
+    free(D->slab_lo);
+    free(D->slab_hi);
+    free(D->gid);
+    free(D->own);
+    free(D->xref);
+    free(D->ybuf);
+    free(D->ysave);
+    free(D->scount);
+    free(D->rcount);
+    free(D->soff);
+    free(D->roff);
+    free(D->sidx);
+    free(D->ridx);
+    free(D->sbuf);
+    free(D->rbuf);
+    free(D->req);
+    free(D->stat);
+    free(D->mcount);
+    free(D->mdispl);
+    free(D->rmcount);
+    free(D->rmdispl);
+    free(D->msend);
+    free(D->mrecv);
+    free(D->order);
+    free(D);
+}
+
+/* ---- geometry of the slabs ---- */
+
+/* Coordinate along the axis, into [lo, lo + len) on a periodic axis. */
+static double axis_coord(const psys__domain *D, double q)
+{
+    if (!D->periodic)
+        return q;
+    double u = (q - D->lo) / D->len;
+    return D->lo + (u - floor(u)) * D->len;
+}
+
+static int owner_of(const psys__domain *D, double q)
+{
+    const size_t nb = (size_t)D->size * DOMAIN_BINS;
+    double u = (axis_coord(D, q) - D->lo) / D->len * (double)nb;
+    size_t b = !(u >= 0) ? 0 : u >= (double)nb ? nb - 1 : (size_t)u;
+    return D->bin_rank[b];
+}
+
+/* Does rank r need a particle at axis coordinate q as a ghost? */
+static bool needed_by(const psys__domain *D, double q, int r)
+{
+    if (D->delta < 0)
+        return false;
+    double a = D->slab_lo[r], b = D->slab_hi[r];
+    if (!(a < b))
+        return false; /* an empty slab owns nothing and needs nothing */
+    if (isinf(D->delta))
+        return true;
+    double dist;
+    if (D->periodic) {
+        double c = axis_coord(D, q), up = a - c, down = c - b;
+        up -= floor(up / D->len) * D->len;     /* from c up to the slab's start, in [0, len) */
+        down -= floor(down / D->len) * D->len; /* from the slab's end up to c */
+        dist = fmin(up, down);
+        if (c >= a && c < b)
+            dist = 0;
+    } else {
+        dist = q < a ? a - q : q >= b ? q - b : 0;
+    }
+    return dist < D->delta;
+}
+
+/* Re-cut the slabs from a global histogram of the owned particles. */
+static int cut_slabs(psys__domain *D)
+{
+    const int d = D->dim, R = D->size;
+    const size_t nb = (size_t)R * DOMAIN_BINS;
+    const psys_system *s = D->local;
+    if (!D->fixed_range) {
+        double mm[2] = {INFINITY, INFINITY}; /* {min, -max} */
+        for (size_t i = 0; i < D->nloc; i++) {
+            if (!D->own[i])
+                continue;
+            double q = s->x[i * d + D->axis];
+            if (q < mm[0])
+                mm[0] = q;
+            if (-q < mm[1])
+                mm[1] = -q;
+        }
+        double g[2];
+        if (MPI_Allreduce(mm, g, 2, MPI_DOUBLE, MPI_MIN, D->comm) != MPI_SUCCESS)
+            return -1;
+        double lo = g[0], hi = -g[1];
+        D->lo = isfinite(lo) ? lo : 0.0;
+        D->len = isfinite(hi) && isfinite(lo) && hi > lo ? (hi - lo) * (1 + 1e-12) : 1.0;
+    }
+    memset(D->hist, 0, nb * sizeof *D->hist);
+    for (size_t i = 0; i < D->nloc; i++) {
+        if (!D->own[i])
+            continue;
+        double u = (axis_coord(D, s->x[i * d + D->axis]) - D->lo) / D->len * (double)nb;
+        size_t b = !(u >= 0) ? 0 : u >= (double)nb ? nb - 1 : (size_t)u;
+        D->hist[b]++;
+    }
+    if (MPI_Allreduce(MPI_IN_PLACE, D->hist, (int)nb, MPI_UINT64_T, MPI_SUM, D->comm) != MPI_SUCCESS)
+        return -1;
+    uint64_t total = 0;
+    for (size_t b = 0; b < nb; b++)
+        total += D->hist[b];
+    /* bin b goes to the rank r with r·n/R <= (particles in bins before b) < (r+1)·n/R */
+    uint64_t before = 0;
+    for (size_t b = 0; b < nb; b++) {
+        uint64_t r = total ? before * (uint64_t)R / total : 0;
+        D->bin_rank[b] = (int)(r < (uint64_t)R ? r : (uint64_t)R - 1);
+        before += D->hist[b];
+    }
+    const double w = D->len / (double)nb;
+    for (int r = 0; r < R; r++)
+        D->slab_lo[r] = D->slab_hi[r] = 0;
+    for (int r = 0; r < R; r++) {
+        size_t b0 = nb, b1 = 0;
+        for (size_t b = 0; b < nb; b++)
+            if (D->bin_rank[b] == r) {
+                if (b0 == nb)
+                    b0 = b;
+                b1 = b + 1;
+            }
+        if (b0 == nb)
+            continue; /* empty */
+        D->slab_lo[r] = D->lo + (double)b0 * w;
+        D->slab_hi[r] = b1 == nb ? D->lo + D->len : D->lo + (double)b1 * w;
+        if (!D->periodic) { /* clamped bins: the end slabs reach to infinity */
+            if (b0 == 0)
+                D->slab_lo[r] = -INFINITY;
+            if (b1 == nb)
+                D->slab_hi[r] = INFINITY;
+        }
+    }
+    return 0;
+}
+
+/* ---- storage ---- */
+
+static void *grow(void *p, size_t *cap, size_t want, size_t size)
+{
+    if (want <= *cap && p)
+        return p;
+    size_t c = *cap ? *cap : 64;
+    while (c < want)
+        c *= 2;
+    void *q = psys__realloc(p, c, size);
+    if (q)
+        *cap = c;
+    return q;
+}
+
+/* Local arrays for m particles (0 on success). */
+static int reserve_local(psys__domain *D, size_t m)
+{
+    if (m <= D->cap)
+        return 0;
+    size_t cap = D->cap ? D->cap : 64;
+    while (cap < m)
+        cap *= 2;
+    const size_t d = (size_t)D->dim;
+    void *p;
+#define GROW(field, count)                                             \
+    if (!(p = psys__realloc(D->field, (count), sizeof *D->field)))    \
+        return -1;                                                     \
+    D->field = p;
+    GROW(gid, cap)
+    GROW(own, cap)
+    GROW(xref, cap * d)
+    GROW(ybuf, 2 * cap * d)
+    GROW(ysave, 2 * cap * d)
+    GROW(ridx, cap)
+#undef GROW
+    D->cap = cap;
+    return 0;
+}
+
+/* ---- the local ODE: the local system's, with ghosts filled in first ---- */
+
+/* Owners send their particles' x and v to the ranks holding them as ghosts. */
+static int halo_exchange(psys__domain *D, double *y)
+{
+    const size_t d = (size_t)D->dim, nd = D->nloc * d, rl = 2 * d;
+    int nreq = 0;
+    for (int r = 0; r < D->size; r++)
+        if (D->rcount[r] > 0
+            && MPI_Irecv(D->rbuf + D->roff[r] * rl, (int)((size_t)D->rcount[r] * rl), MPI_DOUBLE, r, HALO_TAG, D->comm,
+                         &D->req[nreq++])
+                   != MPI_SUCCESS)
+            return -1;
+    for (int r = 0; r < D->size; r++) {
+        if (D->scount[r] == 0)
+            continue;
+        double *b = D->sbuf + D->soff[r] * rl;
+        for (size_t t = D->soff[r]; t < D->soff[r + 1]; t++, b += rl) {
+            size_t i = D->sidx[t];
+            memcpy(b, y + i * d, d * sizeof(double));
+            memcpy(b + d, y + nd + i * d, d * sizeof(double));
+        }
+        if (MPI_Isend(D->sbuf + D->soff[r] * rl, (int)((size_t)D->scount[r] * rl), MPI_DOUBLE, r, HALO_TAG, D->comm,
+                      &D->req[nreq++])
+            != MPI_SUCCESS)
+            return -1;
+    }
+    if (nreq && MPI_Waitall(nreq, D->req, D->stat) != MPI_SUCCESS)
+        return -1;
+    const double *b = D->rbuf;
+    for (size_t t = 0; t < D->roff[D->size]; t++, b += rl) {
+        size_t i = D->ridx[t];
+        memcpy(y + i * d, b, d * sizeof(double));
+        memcpy(y + nd + i * d, b + d, d * sizeof(double));
+    }
+    return 0;
+}
+
+/* Largest displacement of an owned particle since the redistribution
+ * (minimum image on periodic axes; NaN positions are left to the solver's
+ * finite check). */
+static double owned_displacement(const psys__domain *D, const double *x)
+{
+    const int d = D->dim;
+    const psys__box *box = &D->local->box;
+    double m = 0;
+    for (size_t i = 0; i < D->nloc; i++) {
+        if (!D->own[i])
+            continue;
+        double r2 = 0;
+        for (int k = 0; k < d; k++) {
+            double dx = x[i * d + k] - D->xref[i * d + k];
+            if (box->on && box->periodic[k])
+                dx -= box->len[k] * nearbyint(dx / box->len[k]);
+            r2 += dx * dx;
+        }
+        if (r2 > m)
+            m = r2;
+    }
+    return sqrt(m);
+}
+
+static void dd_get_state(void *ctx, double *y)
+{
+    psys__domain *D = ctx;
+    D->inner.get_state(D->inner.ctx, y);
+}
+static void dd_set_state(void *ctx, const double *y)
+{
+    psys__domain *D = ctx;
+    D->inner.set_state(D->inner.ctx, y);
+}
+static double dd_get_time(void *ctx)
+{
+    psys__domain *D = ctx;
+    return D->inner.get_time(D->inner.ctx);
+}
+static void dd_set_time(void *ctx, double t)
+{
+    psys__domain *D = ctx;
+    D->inner.set_time(D->inner.ctx, t);
+}
+
+/* Ghosts' derivatives are 0: their state is the owners' business, and is
+ * overwritten by the next halo exchange. */
+static psys_status dd_derivative(void *ctx, double t, const double *y, double *ydot)
+{
+    psys__domain *D = ctx;
+    const size_t d = (size_t)D->dim, nd = D->nloc * d;
+    if (nd)
+        memcpy(D->ybuf, y, 2 * nd * sizeof(double));
+    int failed = halo_exchange(D, D->ybuf) != 0;
+    double moved = isfinite(D->delta) ? owned_displacement(D, D->ybuf) : 0.0;
+    psys_status st = failed ? PSYS_ERR_INVALID : D->inner.derivative(D->inner.ctx, t, D->ybuf, ydot);
+    double in[2] = {moved, st != PSYS_OK ? 1.0 : 0.0}, out[2];
+    if (MPI_Allreduce(in, out, 2, MPI_DOUBLE, MPI_MAX, D->comm) != MPI_SUCCESS)
+        return psys__fail(&D->err, PSYS_ERR_INVALID, "MPI exchange of the state failed");
+    D->dmax = out[0];
+    if (out[1] != 0)
+        return psys__fail(&D->err, PSYS_ERR_INVALID, "a force evaluation failed on %s",
+                          st != PSYS_OK ? "this rank" : "another rank");
+    if (!(2 * out[0] < D->skin)) {
+        D->stale = true; /* the ghosts may miss a pair: redistribute and take the step again */
+        return psys__fail(&D->err, PSYS_ERR_INVALID, "particles moved too far for the ghosts");
+    }
+    for (size_t i = 0; i < D->nloc; i++)
+        if (!D->own[i])
+            for (size_t k = 0; k < d; k++)
+                ydot[i * d + k] = ydot[nd + i * d + k] = 0.0;
+    return PSYS_OK;
+}
+
+static void dd_reduce_sum(void *ctx, double *values, int count)
+{
+    psys__domain *D = ctx;
+    if (count >= 2) /* the second value counts components: only owned ones are this rank's */
+        values[1] = (double)(2 * D->nown * (size_t)D->dim);
+    MPI_Allreduce(MPI_IN_PLACE, values, count, MPI_DOUBLE, MPI_SUM, D->comm);
+}
+
+/* A solver for the local ODE, continuing the old one's settings. */
+static int make_solver(psys__domain *D)
+{
+    D->inner = psys_system_ode(D->local);
+    psys_ode o;
+    memset(&o, 0, sizeof o);
+    o.size = D->inner.size;
+    o.npos = D->inner.npos;
+    o.ctx = D;
+    o.get_state = dd_get_state;
+    o.set_state = dd_set_state;
+    o.get_time = dd_get_time;
+    o.set_time = dd_set_time;
+    o.derivative = dd_derivative;
+    o.reduce_sum = dd_reduce_sum;
+    o.block = D->dim;
+    if (D->solver) {
+        D->h_next = psys_solver_next_step(D->solver);
+        D->rejected += psys_solver_rejected_steps(D->solver);
+        psys_solver_destroy(D->solver);
+        D->solver = NULL;
+    }
+    psys_error e;
+    psys_solver *s = psys_solver_create(D->integrator, &o, &e);
+    if (!s)
+        return -1;
+    psys_solver_set_tolerance(s, D->tol);
+    psys_solver_set_cg(s, D->cg_tol, D->cg_maxit);
+    if (D->h_next > 0)
+        psys_solver_set_next_step(s, D->h_next);
+    D->solver = s;
+    return 0;
+}
+
+/* ---- migration ---- */
+
+static int by_gid(const void *a, const void *b)
+{
+    size_t ga = ((const struct rec_key *)a)->gid, gb = ((const struct rec_key *)b)->gid;
+    return ga < gb ? -1 : ga > gb;
+}
+
+/* Room for m charges in s (the local system's charges are written directly). */
+static int reserve_charges(psys_system *s, size_t m)
+{
+    if (m <= s->charge_cap)
+        return 0;
+    double *p = psys__realloc(s->charge, m, sizeof(double));
+    if (!p)
+        return -1;
+    s->charge = p;
+    s->charge_cap = m;
+    return 0;
+}
+
+/* Collective: re-cut the slabs, move every owned particle to its slab's rank
+ * with ghost copies to the ranks that need it, rebuild the local system and
+ * the halo plan. 0 on success on every rank. */
+static int redistribute(psys__domain *D)
+{
+    const int d = D->dim, R = D->size;
+    const size_t rl = REC_LEN(d);
+    psys_system *s = D->local;
+    int ok = cut_slabs(D) == 0;
+    /* records to send: counted, then packed by destination */
+    for (int r = 0; r < R; r++)
+        D->mcount[r] = 0;
+    size_t nsend = 0;
+    for (int pass = 0; pass < 2 && ok; pass++) {
+        if (pass == 1) {
+            size_t at = 0;
+            for (int r = 0; r < R; r++) {
+                D->mdispl[r] = (int)at;
+                at += (size_t)D->mcount[r];
+                D->mcount[r] = 0;
+            }
+            if (at > (size_t)INT_MAX || !(D->msend = grow(D->msend, &D->msend_cap, at ? at : 1, sizeof(double)))) {
+                ok = 0;
+                break;
+            }
+        }
+        for (size_t i = 0; i < D->nloc; i++) {
+            if (!D->own[i])
+                continue;
+            double q = s->x[i * d + D->axis];
+            int o = owner_of(D, q);
+            for (int r = 0; r < R; r++) {
+                if (r != o && !needed_by(D, q, r))
+                    continue;
+                if (pass == 1) {
+                    double *rec = D->msend + (size_t)D->mdispl[r] + (size_t)D->mcount[r];
+                    rec[0] = (double)D->gid[i];
+                    rec[1] = s->mass[i];
+                    rec[2] = s->inv_mass[i];
+                    rec[3] = D->charges && i < s->ncharge ? s->charge[i] : 0.0;
+                    rec[4] = (double)s->flags[i] + (r == o ? 256.0 : 0.0);
+                    memcpy(rec + REC_HEAD, s->x + i * d, (size_t)d * sizeof(double));
+                    memcpy(rec + REC_HEAD + d, s->v + i * d, (size_t)d * sizeof(double));
+                }
+                if ((size_t)D->mcount[r] + rl > (size_t)INT_MAX)
+                    ok = 0;
+                D->mcount[r] += (int)rl;
+                nsend++;
+            }
+        }
+    }
+    int all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
+    if (!all)
+        return -1;
+    if (MPI_Alltoall(D->mcount, 1, MPI_INT, D->rmcount, 1, MPI_INT, D->comm) != MPI_SUCCESS)
+        return -1;
+    size_t at = 0;
+    for (int r = 0; r < R; r++) {
+        D->rmdispl[r] = (int)at;
+        at += (size_t)D->rmcount[r];
+    }
+    const size_t m = at / rl;
+    ok = at <= (size_t)INT_MAX && (D->mrecv = grow(D->mrecv, &D->mrecv_cap, at ? at : 1, sizeof(double)))
+         && (D->order = grow(D->order, &D->order_cap, m ? m : 1, sizeof *D->order)) && reserve_local(D, m) == 0
+         && psys__system_reserve(s, m) == PSYS_OK && (!D->charges || reserve_charges(s, m) == 0);
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
+    if (!all)
+        return -1;
+    if (MPI_Alltoallv(D->msend, D->mcount, D->mdispl, MPI_DOUBLE, D->mrecv, D->rmcount, D->rmdispl, MPI_DOUBLE,
+                      D->comm)
+        != MPI_SUCCESS)
+        return -1;
+    /* the new local particles in increasing global index */
+    for (size_t t = 0; t < m; t++) {
+        D->order[t].gid = (size_t)D->mrecv[t * rl];
+        D->order[t].at = t;
+    }
+    qsort(D->order, m, sizeof *D->order, by_gid);
+    D->nown = 0;
+    for (size_t t = 0; t < m; t++) {
+        const double *rec = D->mrecv + D->order[t].at * rl;
+        int fl = (int)rec[4];
+        D->gid[t] = (size_t)rec[0];
+        D->own[t] = (fl & 256) != 0;
+        D->nown += D->own[t];
+        s->mass[t] = rec[1];
+        s->inv_mass[t] = rec[2];
+        s->flags[t] = (unsigned char)(fl & 255);
+        s->ids[t] = NULL;
+        if (D->charges)
+            s->charge[t] = rec[3];
+        memcpy(s->x + t * d, rec + REC_HEAD, (size_t)d * sizeof(double));
+        memcpy(s->v + t * d, rec + REC_HEAD + d, (size_t)d * sizeof(double));
+        memset(s->f + t * d, 0, (size_t)d * sizeof(double));
+        memcpy(D->xref + t * d, rec + REC_HEAD, (size_t)d * sizeof(double));
+    }
+    s->n = m;
+    if (D->charges)
+        s->ncharge = m;
+    D->nloc = m;
+    s->own_mark = D->own;
+    for (size_t k = 0; k < s->nforces; k++)
+        if (s->forces[k].cls == &psys_pair_class)
+            psys__pair_invalidate(s->forces[k].data);
+    /* halo plan: what this rank sends (its owned particles other ranks need)
+     * and where what it receives goes (its ghosts, grouped by owner); both
+     * sides compute them from the same positions and cuts */
+    for (int r = 0; r < R; r++)
+        D->scount[r] = D->rcount[r] = 0;
+    size_t ns = 0;
+    for (size_t i = 0; i < m; i++) {
+        double q = s->x[i * d + D->axis];
+        if (D->own[i]) {
+            for (int r = 0; r < R; r++)
+                if (r != D->rank && needed_by(D, q, r)) {
+                    D->scount[r]++;
+                    ns++;
+                }
+        } else {
+            D->rcount[owner_of(D, q)]++;
+        }
+    }
+    ok = (D->sidx = grow(D->sidx, &D->scap, ns ? ns : 1, sizeof(size_t))) != NULL
+         && (D->sbuf = grow(D->sbuf, &D->sbuf_cap, (ns ? ns : 1) * 2 * (size_t)d, sizeof(double))) != NULL
+         && (D->rbuf = grow(D->rbuf, &D->rbuf_cap, (m - D->nown + 1) * 2 * (size_t)d, sizeof(double))) != NULL;
+    if (ok) {
+        D->soff[0] = D->roff[0] = 0;
+        for (int r = 0; r < R; r++) {
+            D->soff[r + 1] = D->soff[r] + (size_t)D->scount[r];
+            D->roff[r + 1] = D->roff[r] + (size_t)D->rcount[r];
+        }
+        for (int r = 0; r < R; r++)
+            D->scount[r] = D->rcount[r] = 0;
+        for (size_t i = 0; i < m; i++) {
+            double q = s->x[i * d + D->axis];
+            if (D->own[i]) {
+                for (int r = 0; r < R; r++)
+                    if (r != D->rank && needed_by(D, q, r))
+                        D->sidx[D->soff[r] + (size_t)D->scount[r]++] = i;
+            } else {
+                int o = owner_of(D, q);
+                D->ridx[D->roff[o] + (size_t)D->rcount[o]++] = i;
+            }
+        }
+        ok = make_solver(D) == 0;
+    }
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
+    D->dmax = 0;
+    D->stale = false;
+    D->redistributions++;
+    return all ? 0 : -1;
+}
+
+/* ---- stepping ---- */
+
+static void save_state(psys__domain *D)
+{
+    const size_t nd = D->nloc * (size_t)D->dim;
+    if (nd) {
+        memcpy(D->ysave, D->local->x, nd * sizeof(double));
+        memcpy(D->ysave + nd, D->local->v, nd * sizeof(double));
+    }
+}
+
+static void restore_state(psys__domain *D, double t)
+{
+    const size_t nd = D->nloc * (size_t)D->dim;
+    if (nd) {
+        memcpy(D->local->x, D->ysave, nd * sizeof(double));
+        memcpy(D->local->v, D->ysave + nd, nd * sizeof(double));
+    }
+    D->local->t = t;
+}
+
+psys_status psys__domain_advance(psys__domain *D, double h_max, double *h_taken)
+{
+    psys_system *s = D->local;
+    if (h_taken)
+        *h_taken = 0;
+    /* between steps: redistribute before the ghosts run short */
+    if (isfinite(D->delta) && D->delta >= 0 && !(4 * D->dmax < D->skin) && redistribute(D) != 0)
+        return psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory moving particles between MPI ranks");
+    const double t0 = s->t;
+    save_state(D);
+    psys_status st = PSYS_OK;
+    double h = 0;
+    for (int attempt = 0;; attempt++) {
+        psys_solver_set_threads(D->solver, psys_system_effective_threads(s));
+        st = psys_solver_step(D->solver, h_max, &h);
+        if (!D->stale) /* the same on every rank (an all-reduced decision) */
+            break;
+        restore_state(D, t0);
+        if (attempt == 1) /* not even a fresh decomposition holds for one step: every particle a ghost */
+            D->delta = INFINITY;
+        if (redistribute(D) != 0)
+            return psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory moving particles between MPI ranks");
+        save_state(D);
+    }
+    /* every rank the same outcome: the worst status, the first bad particle */
+    D->bad = SIZE_MAX;
+    double bad = INFINITY;
+    if (st == PSYS_ERR_NONFINITE) {
+        size_t c = psys_solver_bad_component(D->solver), nd = D->nloc * (size_t)D->dim;
+        size_t i = (c < nd ? c : c - nd) / (size_t)D->dim;
+        /* position components come before velocity components */
+        bad = (c < nd ? 0.0 : 9007199254740992.0) + (i < D->nloc ? (double)D->gid[i] : 0.0);
+    }
+    double in[2] = {(double)st, -bad}, out[2];
+    if (MPI_Allreduce(in, out, 2, MPI_DOUBLE, MPI_MAX, D->comm) != MPI_SUCCESS)
+        return psys__fail(&D->err, PSYS_ERR_INVALID, "MPI exchange of the step's outcome failed");
+    psys_status all = (psys_status)(int)out[0];
+    if (all != PSYS_OK) {
+        restore_state(D, t0); /* the last good state everywhere */
+        if (all == PSYS_ERR_NONFINITE && isfinite(out[1])) {
+            double b = -out[1];
+            D->bad = (size_t)(b >= 9007199254740992.0 ? b - 9007199254740992.0 : b);
+        }
+        if (st == PSYS_OK)
+            psys__fail(&D->err, all, "the step failed on another MPI rank");
+        else
+            psys__fail(&D->err, all, "%s", psys_solver_last_error(D->solver));
+        return all;
+    }
+    psys__box_wrap(s);
+    if (h_taken)
+        *h_taken = h;
+    return PSYS_OK;
+}
+
+const char *psys__domain_last_error(const psys__domain *D) { return D->err.message; }
+
+/* ---- creation ---- */
+
+/* Why the scene cannot be decomposed (NULL: it can); range and skin of its pair forces. */
+static const char *unsupported(const psys_system *g, const char *integrator, double *delta, double *skin)
+{
+    if (strcmp(integrator, "implicit-euler") == 0)
+        return "implicit-euler solves for the whole system at once";
+    if (g->nctrl)
+        return "the scene has controlled particles";
+    if (g->nplanes)
+        return "the scene has planes (contact events couple every particle)";
+    double range = -1, sk = 0;
+    for (size_t k = 0; k < g->nforces; k++) {
+        const psys_force_class *c = g->forces[k].cls;
+        if (c == &psys_gravity_class || c == &psys_drag_class)
+            continue;
+        if (c != &psys_pair_class)
+            return c == &psys_spring_class         ? "the scene has springs"
+                   : c == &psys_behavior_class     ? "the scene has behaviour-function forces"
+                   : c == &psys_mouse_spring_class ? "the scene has mouse springs"
+                                                   : "the scene has a force type other than pair, gravity and drag";
+        psys_pair_def def;
+        psys_system_pair(g, k, &def);
+        double r = def.law == PSYS_PAIR_LENNARD_JONES ? def.cutoff
+                   : def.law == PSYS_PAIR_SOFT_REPULSION ? def.radius
+                                                         : INFINITY;
+        double s = def.method == PSYS_PAIR_GRID && def.skin > 0 ? def.skin : 0.1 * r;
+        if (!(r > range))
+            r = range;
+        range = r;
+        if (s > sk)
+            sk = s;
+    }
+    *delta = range < 0 ? -1 : range + sk;
+    *skin = sk;
+    return NULL;
+}
+
+psys_status psys__domain_create(psys_system *g, const char *integrator, double tol, double cg_tol, int cg_maxit,
+                                double h_next, MPI_Comm comm, psys__domain **out, psys_error *err)
+{
+    *out = NULL;
+    double delta = -1, skin = 0;
+    const char *why = unsupported(g, integrator, &delta, &skin);
+    if (why)
+        return psys__fail(err, PSYS_ERR_UNSUPPORTED, "cannot decompose the domain: %s", why);
+    psys__domain *D = calloc(1, sizeof *D);
+    if (!D)
+        return psys__fail(err, PSYS_ERR_NOMEM, "out of memory for the MPI decomposition");
+    D->comm = MPI_COMM_NULL;
+    if (MPI_Comm_dup(comm, &D->comm) != MPI_SUCCESS || MPI_Comm_rank(D->comm, &D->rank) != MPI_SUCCESS
+        || MPI_Comm_size(D->comm, &D->size) != MPI_SUCCESS) {
+        psys__domain_free(D);
+        return psys__fail(err, PSYS_ERR_INVALID, "cannot duplicate the MPI communicator");
+    }
+    const int d = g->dim, R = D->size;
+    D->dim = d;
+    snprintf(D->integrator, sizeof D->integrator, "%s", integrator);
+    D->tol = tol;
+    D->cg_tol = cg_tol;
+    D->cg_maxit = cg_maxit;
+    D->h_next = h_next;
+    D->delta = delta;
+    D->skin = isfinite(delta) && delta >= 0 ? skin : INFINITY;
+    D->charges = g->ncharge > 0;
+    const size_t nb = (size_t)R * DOMAIN_BINS;
+    D->bin_rank = psys__calloc(nb, sizeof(int));
+    D->hist = psys__calloc(nb, sizeof(uint64_t));
+    D->slab_lo = psys__calloc((size_t)R, sizeof(double));
+    D->slab_hi = psys__calloc((size_t)R, sizeof(double));
+    D->scount = psys__calloc((size_t)R, sizeof(int));
+    D->rcount = psys__calloc((size_t)R, sizeof(int));
+    D->soff = psys__calloc((size_t)R + 1, sizeof(size_t));
+    D->roff = psys__calloc((size_t)R + 1, sizeof(size_t));
+    D->req = psys__calloc(2 * (size_t)R, sizeof(MPI_Request));
+    D->stat = psys__calloc(2 * (size_t)R, sizeof(MPI_Status));
+    D->mcount = psys__calloc((size_t)R, sizeof(int));
+    D->mdispl = psys__calloc((size_t)R, sizeof(int));
+    D->rmcount = psys__calloc((size_t)R, sizeof(int));
+    D->rmdispl = psys__calloc((size_t)R, sizeof(int));
+    psys_error e;
+    D->local = psys_system_create(d, &e);
+    int ok = D->bin_rank && D->hist && D->slab_lo && D->slab_hi && D->scount && D->rcount && D->soff && D->roff
+             && D->req && D->stat && D->mcount && D->mdispl && D->rmcount && D->rmdispl && D->local;
+    /* the local system: the same box, threads and force objects in the same order */
+    psys_system *s = D->local;
+    if (ok) {
+        s->threads = g->threads;
+        s->box = g->box;
+        s->t = g->t;
+        for (size_t k = 0; k < g->nforces && ok; k++) {
+            const psys_force_class *c = g->forces[k].cls;
+            psys_status st;
+            if (c == &psys_gravity_class) {
+                st = psys_system_add_gravity(s, psys__gravity_g(g->forces[k].data));
+            } else if (c == &psys_drag_class) {
+                st = psys_system_add_drag(s, psys__drag_kd(g->forces[k].data));
+            } else {
+                psys_pair_def def;
+                psys_system_pair(g, k, &def);
+                st = psys_system_add_pair(s, &def, NULL);
+            }
+            ok = st == PSYS_OK;
+        }
+    }
+    /* Every rank starts with every particle (all loaded the scene) and takes
+     * a contiguous block of indices as its own; the first redistribution
+     * then cuts the slabs and moves the particles to them. */
+    const size_t n = g->n;
+    if (ok)
+        ok = reserve_local(D, n ? n : 1) == 0 && psys__system_reserve(s, n ? n : 1) == PSYS_OK
+             && (!D->charges || reserve_charges(s, n ? n : 1) == 0);
+    if (ok) {
+        memcpy(s->x, g->x, n * (size_t)d * sizeof(double));
+        memcpy(s->v, g->v, n * (size_t)d * sizeof(double));
+        memcpy(s->mass, g->mass, n * sizeof(double));
+        memcpy(s->inv_mass, g->inv_mass, n * sizeof(double));
+        memcpy(s->flags, g->flags, n);
+        for (size_t i = 0; i < n; i++) {
+            s->ids[i] = NULL;
+            D->gid[i] = i;
+            D->own[i] = (unsigned char)((unsigned long long)i * (unsigned long long)R / (n ? n : 1) == (unsigned long long)D->rank);
+            D->nown += D->own[i];
+            if (D->charges)
+                s->charge[i] = i < g->ncharge ? g->charge[i] : 0.0;
+        }
+        s->n = n;
+        if (D->charges)
+            s->ncharge = n;
+        D->nloc = n;
+        s->own_mark = D->own;
+        /* the slab axis: the longest of the box, else of the particles' extent */
+        double len[3] = {0, 0, 0}, lo[3] = {0, 0, 0};
+        for (int k = 0; k < d; k++) {
+            if (g->box.on) {
+                lo[k] = g->box.lo[k];
+                len[k] = g->box.len[k];
+            } else {
+                double mn = INFINITY, mx = -INFINITY;
+                for (size_t i = 0; i < n; i++) {
+                    double q = g->x[i * d + k];
+                    mn = q < mn ? q : mn;
+                    mx = q > mx ? q : mx;
+                }
+                lo[k] = mn;
+                len[k] = mx - mn;
+            }
+        }
+        D->axis = 0;
+        for (int k = 1; k < d; k++)
+            if (len[k] > len[D->axis])
+                D->axis = k;
+        D->periodic = g->box.on && g->box.periodic[D->axis];
+        D->fixed_range = g->box.on;
+        D->lo = lo[D->axis];
+        D->len = len[D->axis] > 0 ? len[D->axis] : 1.0;
+    }
+    int all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
+    if (!all || redistribute(D) != 0) {
+        psys__domain_free(D);
+        return psys__fail(err, PSYS_ERR_NOMEM, "out of memory for the MPI decomposition");
+    }
+    *out = D;
+    psys__ok(err);
+    return PSYS_OK;
+}
+
+size_t psys__domain_owned(const psys__domain *D) { return D->nown; }
+size_t psys__domain_ghosts(const psys__domain *D) { return D->nloc - D->nown; }
+size_t psys__domain_redistributions(const psys__domain *D) { return D->redistributions; }
+
+/* Collective: rank 0's system g gets every particle's state and the clock. */
+psys_status psys__domain_gather(psys__domain *D, psys_system *g)
+{
+    const size_t d = (size_t)D->dim, rl = 1 + 2 * d;
+    const psys_system *s = D->local;
+    int mine = (int)(D->nown * rl), *counts = NULL, *displs = NULL;
+    double *send = psys__calloc(D->nown ? D->nown * rl : 1, sizeof(double)), *recv = NULL;
+    int ok = send != NULL;
+    if (D->rank == 0) {
+        counts = psys__calloc((size_t)D->size, sizeof(int));
+        displs = psys__calloc((size_t)D->size, sizeof(int));
+        recv = psys__calloc(g->n ? g->n * rl : 1, sizeof(double));
+        ok = ok && counts && displs && recv;
+    }
+    int all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
+    psys_status st = PSYS_OK;
+    if (!all) {
+        st = psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory gathering the particles on rank 0");
+        goto done;
+    }
+    double *b = send;
+    for (size_t i = 0; i < D->nloc; i++) {
+        if (!D->own[i])
+            continue;
+        b[0] = (double)D->gid[i];
+        memcpy(b + 1, s->x + i * d, d * sizeof(double));
+        memcpy(b + 1 + d, s->v + i * d, d * sizeof(double));
+        b += rl;
+    }
+    MPI_Gather(&mine, 1, MPI_INT, counts, 1, MPI_INT, 0, D->comm);
+    if (D->rank == 0) {
+        int at = 0;
+        for (int r = 0; r < D->size; r++) {
+            displs[r] = at;
+            at += counts[r];
+        }
+    }
+    MPI_Gatherv(send, mine, MPI_DOUBLE, recv, counts, displs, MPI_DOUBLE, 0, D->comm);
+    if (D->rank == 0) {
+        for (size_t t = 0; t < g->n; t++) {
+            const double *r = recv + t * rl;
+            size_t i = (size_t)r[0];
+            if (i < g->n) {
+                memcpy(g->x + i * d, r + 1, d * sizeof(double));
+                memcpy(g->v + i * d, r + 1 + d, d * sizeof(double));
+            }
+        }
+        g->t = s->t;
+    }
+done:
+    free(send);
+    free(recv);
+    free(counts);
+    free(displs);
+    return st;
+}
+
+void psys__domain_release(psys_system *g)
+{
+    for (size_t k = 0; k < g->nforces; k++)
+        if (g->forces[k].cls->destroy)
+            g->forces[k].cls->destroy(g->forces[k].data);
+    g->nforces = 0;
+    for (size_t i = 0; i < g->n; i++)
+        free(g->ids[i]);
+    free(g->x);
+    free(g->v);
+    free(g->f);
+    free(g->mass);
+    free(g->inv_mass);
+    free(g->flags);
+    free(g->ids);
+    free(g->id_index);
+    free(g->charge);
+    g->x = g->v = g->f = g->mass = g->inv_mass = g->charge = NULL;
+    g->flags = NULL;
+    g->ids = NULL;
+    g->id_index = NULL;
+    g->n = g->cap = g->nids = g->id_index_cap = 0;
+    g->ncharge = g->charge_cap = 0;
+}
