@@ -5,7 +5,11 @@
 # cutoff 2.5σ, grid method, velocity Verlet, periodic cube) and direct
 # gravity (a uniform ball). Strong: fixed N, R = 1, 2, 4. Weak: N/R fixed.
 # Wall time is the median of REPS runs (REPS=3). On a 2-core machine R = 4
-# is oversubscribed: report it as such.
+# is oversubscribed: report it as such. MODE=domain (default: each rank
+# holds its slab's particles and ghosts) or MODE=replicated (every rank holds
+# every particle) is passed as --mpi MODE. LJ_CELLS (default 20: 32,000
+# atoms) sizes the strong-scaling melt; the weak one has about 8,000 atoms
+# per rank.
 set -euo pipefail
 PSYS=$(realpath "$1")
 MPIEXEC=${2:-mpiexec.mpich}
@@ -15,6 +19,8 @@ RANKS=("$@")
 REPS=${REPS:-3}
 STEPS=${STEPS:-100}
 STEPS0=${STEPS0:-10}
+MODE=${MODE:-domain}
+LJ_CELLS=${LJ_CELLS:-20}
 FLAGS=()
 if "$MPIEXEC" --version 2>&1 | grep -qi 'open mpi\|openrte'; then
     FLAGS=(--oversubscribe)
@@ -56,7 +62,7 @@ med_time() {
         if [ "$r" -eq 1 ]; then
             "$PSYS" run "$scene" --steps "$steps" --threads 1 --quiet
         else
-            "$MPIEXEC" "${FLAGS[@]}" -n "$r" "$PSYS" run "$scene" --steps "$steps" --quiet
+            "$MPIEXEC" "${FLAGS[@]}" -n "$r" "$PSYS" run "$scene" --steps "$steps" --mpi "$MODE" --quiet
         fi
         t1=$(date +%s.%N)
         times+=("$(awk -v a="$t0" -v b="$t1" 'BEGIN { print b - a }')")
@@ -72,18 +78,18 @@ run_case() {
     t=$(med_time "$scene" "$r" "$STEPS")
     t0=$(med_time "$scene" "$r" "$STEPS0")
     n=$(grep -o '"x":' "$scene" | wc -l)
-    awk -v name="$name" -v n="$n" -v r="$r" -v s="$STEPS" -v s0="$STEPS0" -v t="$t" -v t0="$t0" -v c="$(nproc)" 'BEGIN {
+    awk -v name="$name" -v mode="$MODE" -v n="$n" -v r="$r" -v s="$STEPS" -v s0="$STEPS0" -v t="$t" -v t0="$t0" -v c="$(nproc)" 'BEGIN {
         ps = (t - t0) / (s - s0)
-        printf "{\"case\":\"%s\",\"particles\":%d,\"ranks\":%d,\"steps\":%d,\"wall_s\":%.3f,\"startup_s\":%.3f,\"ms_per_step\":%.3f,\"us_per_particle_step\":%.3f,\"cores\":%d}\n",
-            name, n, r, s, t, t0 - s0 * ps, 1000 * ps, 1e6 * ps / n, c }'
+        printf "{\"case\":\"%s\",\"mode\":\"%s\",\"particles\":%d,\"ranks\":%d,\"steps\":%d,\"wall_s\":%.3f,\"startup_s\":%.3f,\"ms_per_step\":%.3f,\"us_per_particle_step\":%.3f,\"cores\":%d}\n",
+            name, (r > 1 ? mode : "serial"), n, r, s, t, t0 - s0 * ps, 1000 * ps, 1e6 * ps / n, c }'
 }
 
-lj_scene 10 "$WORK/lj4000.json"
+lj_scene "$LJ_CELLS" "$WORK/ljs.json"
 ball_scene 2000 "$WORK/ball2000.json"
-for r in "${RANKS[@]}"; do run_case lj-strong "$WORK/lj4000.json" "$r"; done
+for r in "${RANKS[@]}"; do run_case lj-strong "$WORK/ljs.json" "$r"; done
 for r in "${RANKS[@]}"; do run_case gravity-strong "$WORK/ball2000.json" "$r"; done
 for r in "${RANKS[@]}"; do
-    case $r in 1) c=8 ;; 2) c=10 ;; 4) c=13 ;; *) c=$(awk -v r="$r" 'BEGIN { printf "%d", (500 * r) ^ (1/3) + 0.5 }') ;; esac
-    lj_scene "$c" "$WORK/ljw$r.json"   # 2048, 4000, 8788 atoms: about 2000 per rank
+    case $r in 1) c=13 ;; 2) c=16 ;; 4) c=20 ;; *) c=$(awk -v r="$r" 'BEGIN { printf "%d", (2000 * r) ^ (1/3) + 0.5 }') ;; esac
+    lj_scene "$c" "$WORK/ljw$r.json"   # 8788, 16384, 32000 atoms: about 8,000 per rank
     run_case lj-weak "$WORK/ljw$r.json" "$r"
 done

@@ -473,7 +473,9 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         return;
     }
     const unsigned char *own = psys__dist_mark(p->sys);
-    if (own) { /* MPI (mpi.c, mpi_domain.c): this rank's rows only, past the cache; the others are not read */
+    if (own && own != p->sys->own_mark) {
+        /* MPI, replicated state (mpi.c): this rank's rows only, which change
+         * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
             pair_soa_positions(p, x, n, nt);
             grid_rows(p, m, w, n, own, g->fcache, nt);
@@ -515,16 +517,27 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
                         g->mark[g->nb[g->nb_start[c] + q]] |= 1;
                 }
             }
+            if (own) /* a domain's ghosts: their rows are never used */
+                for (size_t i = 0; i < n; i++)
+                    g->mark[i] = own[i] ? g->mark[i] : 0;
             mark = g->mark;
             p->stats.partial++;
         }
     }
+    /* own (MPI domain decomposition, mpi_domain.c): only the owned rows, a
+     * set fixed between redistributions (which invalidate the cache); the
+     * ghosts' rows of the cache are zero */
+    const unsigned char *rows = mark ? mark : own;
+    if (compute && own && !mark)
+        for (size_t i = 0; i < n; i++)
+            if (!own[i])
+                memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
     if (compute && !g->half && pair_can_vectorise(p, w, n)) {
         pair_soa_positions(p, x, n, nt);
-        grid_rows(p, m, w, n, mark, g->fcache, nt);
+        grid_rows(p, m, w, n, rows, g->fcache, nt);
     }
     else if (compute)
-        fn(p, m, x, w, n, mark, g->fcache, nt);
+        fn(p, m, x, w, n, rows, g->fcache, nt);
     if (mark) {
         for (size_t t = 0; t < nc; t++) {
             uint32_t c = g->changed[t];

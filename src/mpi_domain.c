@@ -15,13 +15,14 @@
  *
  * Migration. At a redistribution every rank sends each particle it owns to
  * the rank of the slab it is now in, and copies to the ranks that need it as
- * a ghost (MPI_Alltoallv); the slabs are re-cut first. It happens between
- * steps, when the largest displacement since the last one, over all ranks,
- * reaches a quarter of the skin (two particles then may have closed their
- * gap by half the skin), and whenever an evaluation inside a step finds two
- * such displacements could have closed the whole skin: that step is then
- * abandoned on every rank, the particles redistributed and the step taken
- * again. Ghost sets are therefore always complete: every pair closer than
+ * a ghost (MPI_Alltoallv); the slabs are re-cut first. Every evaluation
+ * gathers each rank's two largest displacements since then; the ghosts hold
+ * while the two largest of all add up to less than the skin (no pair can
+ * have closed its gap by more).
+ * Between steps a redistribution happens when the next step could break
+ * that (judged from the last step's growth); if an evaluation inside a step
+ * finds it broken anyway, that step is abandoned on every rank, the
+ * particles redistributed and the step taken again. Ghost sets are therefore always complete: every pair closer than
  * the pair range with one owned end has its other end on the rank.
  *
  * Same answers. The local system holds its particles in increasing global
@@ -101,7 +102,10 @@ struct psys__domain {
     size_t order_cap;
     /* step state */
     psys_ode inner;           /* the local system's ODE */
-    double dmax;              /* largest owned displacement since the redistribution, all ranks, last evaluation */
+    double dmax;              /* the two largest displacements since the redistribution added, all ranks,
+                                 at the last evaluation */
+    double dmax_step;         /* dmax at the start of the last step */
+    double *gath;             /* 3·size: every rank's two largest displacements and failure flag */
     bool stale;               /* an evaluation found the ghosts could be incomplete */
     size_t bad;               /* global index of the first non-finite particle of a failed step */
     size_t redistributions;
@@ -142,6 +146,7 @@ void psys__domain_free(psys__domain *D)
     free(D->sbuf);
     free(D->rbuf);
     free(D->req);
+    free(D->gath);
     free(D->stat);
     free(D->mcount);
     free(D->mdispl);
@@ -343,14 +348,14 @@ static int halo_exchange(psys__domain *D, double *y)
     return 0;
 }
 
-/* Largest displacement of an owned particle since the redistribution
- * (minimum image on periodic axes; NaN positions are left to the solver's
- * finite check). */
-static double owned_displacement(const psys__domain *D, const double *x)
+/* The two largest displacements of owned particles since the redistribution
+ * into top[0] >= top[1] (minimum image on periodic axes; NaN positions are
+ * left to the solver's finite check). */
+static void owned_displacements(const psys__domain *D, const double *x, double top[2])
 {
     const int d = D->dim;
     const psys__box *box = &D->local->box;
-    double m = 0;
+    double m1 = 0, m2 = 0;
     for (size_t i = 0; i < D->nloc; i++) {
         if (!D->own[i])
             continue;
@@ -361,10 +366,15 @@ static double owned_displacement(const psys__domain *D, const double *x)
                 dx -= box->len[k] * nearbyint(dx / box->len[k]);
             r2 += dx * dx;
         }
-        if (r2 > m)
-            m = r2;
+        if (r2 > m1) {
+            m2 = m1;
+            m1 = r2;
+        } else if (r2 > m2) {
+            m2 = r2;
+        }
     }
-    return sqrt(m);
+    top[0] = sqrt(m1);
+    top[1] = sqrt(m2);
 }
 
 static void dd_get_state(void *ctx, double *y)
@@ -397,16 +407,32 @@ static psys_status dd_derivative(void *ctx, double t, const double *y, double *y
     if (nd)
         memcpy(D->ybuf, y, 2 * nd * sizeof(double));
     int failed = halo_exchange(D, D->ybuf) != 0;
-    double moved = isfinite(D->delta) ? owned_displacement(D, D->ybuf) : 0.0;
+    double in[3] = {0, 0, 0};
+    if (isfinite(D->delta))
+        owned_displacements(D, D->ybuf, in);
     psys_status st = failed ? PSYS_ERR_INVALID : D->inner.derivative(D->inner.ctx, t, D->ybuf, ydot);
-    double in[2] = {moved, st != PSYS_OK ? 1.0 : 0.0}, out[2];
-    if (MPI_Allreduce(in, out, 2, MPI_DOUBLE, MPI_MAX, D->comm) != MPI_SUCCESS)
+    in[2] = st != PSYS_OK ? 1.0 : 0.0;
+    /* every rank's two largest displacements and failure flag */
+    if (MPI_Allgather(in, 3, MPI_DOUBLE, D->gath, 3, MPI_DOUBLE, D->comm) != MPI_SUCCESS)
         return psys__fail(&D->err, PSYS_ERR_INVALID, "MPI exchange of the state failed");
-    D->dmax = out[0];
-    if (out[1] != 0)
+    double m1 = 0, m2 = 0, bad = 0;
+    for (int r = 0; r < D->size; r++) {
+        for (int k = 0; k < 2; k++) {
+            double v = D->gath[3 * r + k];
+            if (v > m1) {
+                m2 = m1;
+                m1 = v;
+            } else if (v > m2) {
+                m2 = v;
+            }
+        }
+        bad = fmax(bad, D->gath[3 * r + 2]);
+    }
+    D->dmax = m1 + m2; /* no pair can have closed its gap by more */
+    if (bad != 0)
         return psys__fail(&D->err, PSYS_ERR_INVALID, "a force evaluation failed on %s",
                           st != PSYS_OK ? "this rank" : "another rank");
-    if (!(2 * out[0] < D->skin)) {
+    if (!(D->dmax < D->skin)) {
         D->stale = true; /* the ghosts may miss a pair: redistribute and take the step again */
         return psys__fail(&D->err, PSYS_ERR_INVALID, "particles moved too far for the ghosts");
     }
@@ -628,7 +654,7 @@ static int redistribute(psys__domain *D)
         ok = make_solver(D) == 0;
     }
     MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
-    D->dmax = 0;
+    D->dmax = D->dmax_step = 0;
     D->stale = false;
     D->redistributions++;
     return all ? 0 : -1;
@@ -660,9 +686,15 @@ psys_status psys__domain_advance(psys__domain *D, double h_max, double *h_taken)
     psys_system *s = D->local;
     if (h_taken)
         *h_taken = 0;
-    /* between steps: redistribute before the ghosts run short */
-    if (isfinite(D->delta) && D->delta >= 0 && !(4 * D->dmax < D->skin) && redistribute(D) != 0)
-        return psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory moving particles between MPI ranks");
+    /* Between steps: redistribute when the next step could use up the skin,
+     * judged from how much the largest displacement grew in the last step
+     * (a wrong guess costs a retried step, never a wrong force). */
+    if (isfinite(D->delta) && D->delta >= 0) {
+        double grew = D->dmax > D->dmax_step ? D->dmax - D->dmax_step : 0.0;
+        if (!(D->dmax + 1.25 * grew < D->skin) && redistribute(D) != 0)
+            return psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory moving particles between MPI ranks");
+        D->dmax_step = D->dmax;
+    }
     const double t0 = s->t;
     save_state(D);
     psys_status st = PSYS_OK;
@@ -788,6 +820,7 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     D->roff = psys__calloc((size_t)R + 1, sizeof(size_t));
     D->req = psys__calloc(2 * (size_t)R, sizeof(MPI_Request));
     D->stat = psys__calloc(2 * (size_t)R, sizeof(MPI_Status));
+    D->gath = psys__calloc(3 * (size_t)R, sizeof(double));
     D->mcount = psys__calloc((size_t)R, sizeof(int));
     D->mdispl = psys__calloc((size_t)R, sizeof(int));
     D->rmcount = psys__calloc((size_t)R, sizeof(int));
@@ -795,7 +828,7 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     psys_error e;
     D->local = psys_system_create(d, &e);
     int ok = D->bin_rank && D->hist && D->slab_lo && D->slab_hi && D->scount && D->rcount && D->soff && D->roff
-             && D->req && D->stat && D->mcount && D->mdispl && D->rmcount && D->rmdispl && D->local;
+             && D->req && D->stat && D->gath && D->mcount && D->mdispl && D->rmcount && D->rmdispl && D->local;
     /* the local system: the same box, threads and force objects in the same order */
     psys_system *s = D->local;
     if (ok) {

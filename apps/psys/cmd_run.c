@@ -856,13 +856,14 @@ static int run_main(int argc, char **argv)
     /* Decomposed: rank 0's system has the state only after a gather, at
      * frames, and at every step when pictures are drawn. */
     const int gather_each_step = agree(ren != NULL || still);
+    const int gather_frames = agree(out.traj.fp != NULL || out.energy.fp != NULL || out.plot_on);
     long long gathered = psys_run_step_index(run);
     while (!psys_run_done(run) && agree(!stop_signal && !io_failed && !pic_failed)) {
         if (psys_run_step(run, &err) != PSYS_OK) {
             status = EXIT_RUN_FAILED;
             break;
         }
-        if (decomposed && (gather_each_step || psys_run_is_frame(run))) {
+        if (decomposed && (gather_each_step || (gather_frames && psys_run_is_frame(run)))) {
             io_failed |= gather_state(run);
             gathered = psys_run_step_index(run);
         }
