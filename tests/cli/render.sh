@@ -171,11 +171,13 @@ expect_exists f4/002.png "zero-padded frame numbers"
 # is printed: checked above with expect_stderr_empty).
 if command -v script >/dev/null 2>&1; then
     mkdir tty
-    script -qec "'$PSYS' run swing.json --render 'tty/%03d.png' --size 800x800 --fps 40 --duration 3 --camera fit=start" \
+    # The bar appears after 2 s: the render must take longer than that even on
+    # a fast machine (about 5 s here).
+    script -qec "'$PSYS' run swing.json --render 'tty/%03d.png' --size 1000x1000 --fps 40 --duration 5 --camera fit=start" \
         /dev/null >tty.txt 2>&1 </dev/null
     check "progress bar on a terminal during a long render (got: $(tr '\r' '\n' <tty.txt | grep -m1 . | head -c 120))" \
         grep -q '%  step [0-9]* *eta' tty.txt
-    expect_eq 121 "$(ls tty | wc -l | tr -d ' ')" "the render on a terminal wrote every frame"
+    expect_eq 201 "$(ls tty | wc -l | tr -d ' ')" "the render on a terminal wrote every frame"
 fi
 
 # ---------------------------------------------------------------- GIF
