@@ -158,6 +158,8 @@ const char *psys__domain_last_error(const psys__domain *D);
 size_t psys__domain_owned(const psys__domain *D);
 size_t psys__domain_ghosts(const psys__domain *D);
 size_t psys__domain_redistributions(const psys__domain *D);
+/** Ranks along each axis of the domain's grid. */
+void psys__domain_parts(const psys__domain *D, int parts[3]);
 /** Collective: rank 0's g gets every particle's state and the clock. */
 psys_status psys__domain_gather(psys__domain *D, psys_system *g);
 /** Free g's particles and force objects (ranks other than 0 after decomposing). */

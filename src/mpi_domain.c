@@ -1,28 +1,33 @@
-/* MPI domain decomposition (docs/mpi.md "Distributed memory"): the particles
- * of a run spread over the ranks of a communicator, each rank holding only
- * the particles of its slab of space ("owned") and ghost copies of the
- * particles near its slab. Compiled only with -DPSYS_MPI=ON.
+/* MPI domain decomposition (docs/mpi.md "Domain decomposition"): the
+ * particles of a run spread over the ranks of a communicator, each rank
+ * holding only the particles of its box of space ("owned") and ghost copies
+ * of the particles near its box. Compiled only with -DPSYS_MPI=ON.
  *
- * Decomposition. Slabs along one axis (the longest axis of the box, else of
- * the particles' bounding box at the start), cut so each holds about n/R
- * particles: a global histogram of 64·R bins (MPI_Allreduce), cuts at bin
- * edges. A rank's ghosts are the other ranks' particles within delta of its
- * slab along the axis (delta = the longest pair-force range + skin; every
- * particle when a law has no cutoff: the all-gather exchange for direct and
- * Barnes–Hut gravity and Coulomb). Before every force evaluation each rank
- * sends its owned particles' positions and velocities to the ranks that
- * hold them as ghosts (point-to-point, halo exchange).
+ * Decomposition. A grid of px·py·pz = R boxes: R's prime factors go, largest
+ * first, to the axis whose parts are longest (the box's extent, else the
+ * particles'), so 4 ranks cut a cube 2×2×1 and 8 ranks 2×2×2. The cuts are
+ * levels (one per cut axis): the space is cut along the first axis into px
+ * parts holding about n/px particles each, each of those along the next axis
+ * into py parts, and so on, from global histograms of 64 bins per part
+ * (MPI_Allreduce), cuts at bin edges. A rank's ghosts are the other ranks'
+ * particles whose every coordinate is within delta of its box (delta = the
+ * longest pair-force range + skin; every particle when a law has no cutoff:
+ * the all-gather exchange for direct and Barnes–Hut gravity and Coulomb).
+ * Before every force evaluation each rank sends its owned particles'
+ * positions and velocities to the ranks that hold them as ghosts
+ * (point-to-point, halo exchange); both sides derive the lists from the same
+ * positions and cuts.
  *
  * Migration. At a redistribution every rank sends each particle it owns to
- * the rank of the slab it is now in, and copies to the ranks that need it as
- * a ghost (MPI_Alltoallv); the slabs are re-cut first. Every evaluation
+ * the rank of the box it is now in, and copies to the ranks that need it as
+ * a ghost (MPI_Alltoallv); the grid is re-cut first. Every evaluation
  * gathers each rank's two largest displacements since then; the ghosts hold
  * while the two largest of all add up to less than the skin (no pair can
- * have closed its gap by more).
- * Between steps a redistribution happens when the next step could break
- * that (judged from the last step's growth); if an evaluation inside a step
- * finds it broken anyway, that step is abandoned on every rank, the
- * particles redistributed and the step taken again. Ghost sets are therefore always complete: every pair closer than
+ * have closed its gap by more). Between steps a redistribution happens when
+ * the next step could break that (judged from the last step's growth); if
+ * an evaluation inside a step finds it broken anyway, that step is
+ * abandoned on every rank, the particles redistributed and the step taken
+ * again. Ghost sets are therefore always complete: every pair closer than
  * the pair range with one owned end has its other end on the rank.
  *
  * Same answers. The local system holds its particles in increasing global
@@ -45,7 +50,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define DOMAIN_BINS 64  /* histogram bins per rank for the slab cuts */
+#define DOMAIN_BINS 64  /* histogram bins per part for the cuts */
 #define HALO_TAG 7301
 
 /* One particle on the move: global index, mass, inverse mass, charge,
@@ -68,16 +73,17 @@ struct psys__domain {
     int cg_maxit;
     size_t rejected; /* of the solvers already replaced */
     bool charges;    /* the system has charges: ghosts carry them */
-    /* slabs */
-    int axis;
-    bool periodic;   /* the axis is periodic */
-    bool fixed_range;/* the box gives the histogram's range */
-    double lo, len;  /* histogram range along the axis */
+    /* the grid of ranks: levels of cuts along the axes with more than one part */
+    int parts[3];    /* ranks along each axis (product: size) */
+    int nlev, lev_axis[3], lev_cells[3]; /* level L cuts axis lev_axis[L] in each of lev_cells[L] cells */
+    bool periodic[3];
+    bool fixed_range;/* the box gives the histograms' ranges */
+    double lo[3], len[3]; /* histogram range along each axis */
     double delta;    /* ghost range: < 0 none, INFINITY every particle */
     double skin;     /* displacements of two particles may add up to less than this */
-    int *bin_rank;   /* size·DOMAIN_BINS */
-    uint64_t *hist;  /* size·DOMAIN_BINS */
-    double *slab_lo, *slab_hi; /* size: the slabs along the axis (lo == hi: empty) */
+    int *bin_part[3];      /* level L: lev_cells[L]·parts·DOMAIN_BINS, the part each bin goes to */
+    uint64_t *hist;        /* size·DOMAIN_BINS (the largest level's histogram) */
+    double *reg_lo, *reg_hi; /* size·3: each rank's box (lo == hi on an axis: empty; ±inf: unbounded) */
     /* local particles, in increasing global index */
     size_t cap, nloc, nown;
     size_t *gid;
@@ -128,10 +134,11 @@ void psys__domain_free(psys__domain *D)
     psys_system_destroy(D->local);
     if (D->comm != MPI_COMM_NULL)
         MPI_Comm_free(&D->comm);
-    free(D->bin_rank);
+    for (int L = 0; L < 3; L++)
+        free(D->bin_part[L]);
     free(D->hist);
-    free(D->slab_lo);
-    free(D->slab_hi);
+    free(D->reg_lo);
+    free(D->reg_hi);
     free(D->gid);
     free(D->own);
     free(D->xref);
@@ -158,116 +165,193 @@ void psys__domain_free(psys__domain *D)
     free(D);
 }
 
-/* ---- geometry of the slabs ---- */
+/* ---- geometry of the grid of ranks ---- */
 
-/* Coordinate along the axis, into [lo, lo + len) on a periodic axis. */
-static double axis_coord(const psys__domain *D, double q)
+/* Coordinate along axis k, into [lo, lo + len) on a periodic axis. */
+static double axis_coord(const psys__domain *D, int k, double q)
 {
-    if (!D->periodic)
+    if (!D->periodic[k])
         return q;
-    double u = (q - D->lo) / D->len;
-    return D->lo + (u - floor(u)) * D->len;
+    double u = (q - D->lo[k]) / D->len[k];
+    return D->lo[k] + (u - floor(u)) * D->len[k];
 }
 
-static int owner_of(const psys__domain *D, double q)
+/* Histogram bin of coordinate q along axis k (clamped; NaN to bin 0). */
+static size_t bin_of(const psys__domain *D, int k, double q)
 {
-    const size_t nb = (size_t)D->size * DOMAIN_BINS;
-    double u = (axis_coord(D, q) - D->lo) / D->len * (double)nb;
-    size_t b = !(u >= 0) ? 0 : u >= (double)nb ? nb - 1 : (size_t)u;
-    return D->bin_rank[b];
+    const size_t nb = (size_t)D->parts[k] * DOMAIN_BINS;
+    double u = (axis_coord(D, k, q) - D->lo[k]) / D->len[k] * (double)nb;
+    return !(u >= 0) ? 0 : u >= (double)nb ? nb - 1 : (size_t)u;
 }
 
-/* Does rank r need a particle at axis coordinate q as a ghost? */
-static bool needed_by(const psys__domain *D, double q, int r)
+/* The cell of position x after the first `levels` levels of cuts; with all
+ * levels, the rank owning that position. */
+static int cell_of(const psys__domain *D, const double *x, int levels)
+{
+    int c = 0;
+    for (int L = 0; L < levels; L++) {
+        const int k = D->lev_axis[L], P = D->parts[k];
+        const size_t nb = (size_t)P * DOMAIN_BINS;
+        c = c * P + D->bin_part[L][(size_t)c * nb + bin_of(D, k, x[k])];
+    }
+    return c;
+}
+
+static int owner_of(const psys__domain *D, const double *x) { return cell_of(D, x, D->nlev); }
+
+/* Does rank r need a particle at x as a ghost? Every axis of r's box within
+ * delta of x (a superset of the particles within delta of the box). */
+static bool needed_by(const psys__domain *D, const double *x, int r)
 {
     if (D->delta < 0)
         return false;
-    double a = D->slab_lo[r], b = D->slab_hi[r];
-    if (!(a < b))
-        return false; /* an empty slab owns nothing and needs nothing */
+    for (int k = 0; k < D->dim; k++)
+        if (!(D->reg_lo[3 * r + k] < D->reg_hi[3 * r + k]))
+            return false; /* an empty box owns nothing and needs nothing */
     if (isinf(D->delta))
         return true;
-    double dist;
-    if (D->periodic) {
-        double c = axis_coord(D, q), up = a - c, down = c - b;
-        up -= floor(up / D->len) * D->len;     /* from c up to the slab's start, in [0, len) */
-        down -= floor(down / D->len) * D->len; /* from the slab's end up to c */
-        dist = fmin(up, down);
-        if (c >= a && c < b)
-            dist = 0;
-    } else {
-        dist = q < a ? a - q : q >= b ? q - b : 0;
+    for (int k = 0; k < D->dim; k++) {
+        double a = D->reg_lo[3 * r + k], b = D->reg_hi[3 * r + k], q = x[k], dist;
+        if (isinf(a) && isinf(b))
+            continue; /* the whole axis */
+        if (D->periodic[k]) {
+            double c = axis_coord(D, k, q), L = D->len[k], up = a - c, down = c - b;
+            up -= floor(up / L) * L;     /* from c up to the box's start, in [0, L) */
+            down -= floor(down / L) * L; /* from the box's end up to c */
+            dist = c >= a && c < b ? 0 : fmin(up, down);
+        } else {
+            dist = q < a ? a - q : q >= b ? q - b : 0;
+        }
+        if (!(dist < D->delta))
+            return false;
     }
-    return dist < D->delta;
+    return true;
 }
 
-/* Re-cut the slabs from a global histogram of the owned particles. */
-static int cut_slabs(psys__domain *D)
+/* Re-cut the grid from global histograms of the owned particles: level by
+ * level, each cell of the previous levels is cut along the next axis into
+ * parts holding about equal numbers of particles (cuts at bin edges). */
+static int cut_grid(psys__domain *D)
 {
-    const int d = D->dim, R = D->size;
-    const size_t nb = (size_t)R * DOMAIN_BINS;
+    const int d = D->dim;
     const psys_system *s = D->local;
     if (!D->fixed_range) {
-        double mm[2] = {INFINITY, INFINITY}; /* {min, -max} */
+        double mm[6]; /* {min, -max} per axis */
+        for (int k = 0; k < 6; k++)
+            mm[k] = INFINITY;
         for (size_t i = 0; i < D->nloc; i++) {
             if (!D->own[i])
                 continue;
-            double q = s->x[i * d + D->axis];
-            if (q < mm[0])
-                mm[0] = q;
-            if (-q < mm[1])
-                mm[1] = -q;
-        }
-        double g[2];
-        if (MPI_Allreduce(mm, g, 2, MPI_DOUBLE, MPI_MIN, D->comm) != MPI_SUCCESS)
-            return -1;
-        double lo = g[0], hi = -g[1];
-        D->lo = isfinite(lo) ? lo : 0.0;
-        D->len = isfinite(hi) && isfinite(lo) && hi > lo ? (hi - lo) * (1 + 1e-12) : 1.0;
-    }
-    memset(D->hist, 0, nb * sizeof *D->hist);
-    for (size_t i = 0; i < D->nloc; i++) {
-        if (!D->own[i])
-            continue;
-        double u = (axis_coord(D, s->x[i * d + D->axis]) - D->lo) / D->len * (double)nb;
-        size_t b = !(u >= 0) ? 0 : u >= (double)nb ? nb - 1 : (size_t)u;
-        D->hist[b]++;
-    }
-    if (MPI_Allreduce(MPI_IN_PLACE, D->hist, (int)nb, MPI_UINT64_T, MPI_SUM, D->comm) != MPI_SUCCESS)
-        return -1;
-    uint64_t total = 0;
-    for (size_t b = 0; b < nb; b++)
-        total += D->hist[b];
-    /* bin b goes to the rank r with r·n/R <= (particles in bins before b) < (r+1)·n/R */
-    uint64_t before = 0;
-    for (size_t b = 0; b < nb; b++) {
-        uint64_t r = total ? before * (uint64_t)R / total : 0;
-        D->bin_rank[b] = (int)(r < (uint64_t)R ? r : (uint64_t)R - 1);
-        before += D->hist[b];
-    }
-    const double w = D->len / (double)nb;
-    for (int r = 0; r < R; r++)
-        D->slab_lo[r] = D->slab_hi[r] = 0;
-    for (int r = 0; r < R; r++) {
-        size_t b0 = nb, b1 = 0;
-        for (size_t b = 0; b < nb; b++)
-            if (D->bin_rank[b] == r) {
-                if (b0 == nb)
-                    b0 = b;
-                b1 = b + 1;
+            for (int k = 0; k < d; k++) {
+                double q = s->x[i * d + k];
+                if (q < mm[2 * k])
+                    mm[2 * k] = q;
+                if (-q < mm[2 * k + 1])
+                    mm[2 * k + 1] = -q;
             }
-        if (b0 == nb)
-            continue; /* empty */
-        D->slab_lo[r] = D->lo + (double)b0 * w;
-        D->slab_hi[r] = b1 == nb ? D->lo + D->len : D->lo + (double)b1 * w;
-        if (!D->periodic) { /* clamped bins: the end slabs reach to infinity */
-            if (b0 == 0)
-                D->slab_lo[r] = -INFINITY;
-            if (b1 == nb)
-                D->slab_hi[r] = INFINITY;
+        }
+        if (MPI_Allreduce(MPI_IN_PLACE, mm, 6, MPI_DOUBLE, MPI_MIN, D->comm) != MPI_SUCCESS)
+            return -1;
+        for (int k = 0; k < d; k++) {
+            double lo = mm[2 * k], hi = -mm[2 * k + 1];
+            D->lo[k] = isfinite(lo) ? lo : 0.0;
+            D->len[k] = isfinite(hi) && isfinite(lo) && hi > lo ? (hi - lo) * (1 + 1e-12) : 1.0;
+        }
+    }
+    for (int r = 0; r < D->size; r++)
+        for (int k = 0; k < 3; k++) {
+            D->reg_lo[3 * r + k] = -INFINITY;
+            D->reg_hi[3 * r + k] = INFINITY;
+        }
+    int stride = D->size; /* ranks sharing one index at the current level */
+    for (int L = 0; L < D->nlev; L++) {
+        const int k = D->lev_axis[L], P = D->parts[k], C = D->lev_cells[L];
+        const size_t nb = (size_t)P * DOMAIN_BINS, nh = (size_t)C * nb;
+        memset(D->hist, 0, nh * sizeof *D->hist);
+        for (size_t i = 0; i < D->nloc; i++)
+            if (D->own[i]) {
+                const double *x = s->x + i * d;
+                D->hist[(size_t)cell_of(D, x, L) * nb + bin_of(D, k, x[k])]++;
+            }
+        if (MPI_Allreduce(MPI_IN_PLACE, D->hist, (int)nh, MPI_UINT64_T, MPI_SUM, D->comm) != MPI_SUCCESS)
+            return -1;
+        stride /= P;
+        const double w = D->len[k] / (double)nb;
+        for (int c = 0; c < C; c++) {
+            const uint64_t *h = D->hist + (size_t)c * nb;
+            int *part = D->bin_part[L] + (size_t)c * nb;
+            uint64_t total = 0, before = 0;
+            for (size_t b = 0; b < nb; b++)
+                total += h[b];
+            /* bin b goes to part q with q·n/P <= (particles in bins before b) < (q+1)·n/P */
+            for (size_t b = 0; b < nb; b++) {
+                uint64_t q = total ? before * (uint64_t)P / total : 0;
+                part[b] = (int)(q < (uint64_t)P ? q : (uint64_t)P - 1);
+                before += h[b];
+            }
+            for (int q = 0; q < P; q++) {
+                size_t b0 = nb, b1 = 0;
+                for (size_t b = 0; b < nb; b++)
+                    if (part[b] == q) {
+                        if (b0 == nb)
+                            b0 = b;
+                        b1 = b + 1;
+                    }
+                double lo = 0, hi = 0; /* empty */
+                if (b0 < nb) {
+                    lo = D->lo[k] + (double)b0 * w;
+                    hi = b1 == nb ? D->lo[k] + D->len[k] : D->lo[k] + (double)b1 * w;
+                    if (!D->periodic[k]) { /* clamped bins: the end parts reach to infinity */
+                        if (b0 == 0)
+                            lo = -INFINITY;
+                        if (b1 == nb)
+                            hi = INFINITY;
+                    }
+                }
+                /* every rank of cell c, part q at this level */
+                const int first = (c * P + q) * stride;
+                for (int r = first; r < first + stride; r++) {
+                    D->reg_lo[3 * r + k] = lo;
+                    D->reg_hi[3 * r + k] = hi;
+                }
+            }
         }
     }
     return 0;
+}
+
+/* Ranks per axis: each prime factor of R, largest first, to the axis whose
+ * parts are longest (so the boxes stay near cubes). */
+static void choose_parts(psys__domain *D, const double *len)
+{
+    for (int k = 0; k < 3; k++)
+        D->parts[k] = 1;
+    int R = D->size, f = 2;
+    int primes[64], np = 0;
+    while (R > 1 && np < 64) {
+        if (R % f == 0) {
+            primes[np++] = f;
+            R /= f;
+        } else {
+            f++;
+        }
+    }
+    for (int t = np - 1; t >= 0; t--) {
+        int best = 0;
+        for (int k = 1; k < D->dim; k++)
+            if (len[k] / D->parts[k] > len[best] / D->parts[best])
+                best = k;
+        D->parts[best] *= primes[t];
+    }
+    D->nlev = 0;
+    int cells = 1;
+    for (int k = 0; k < D->dim; k++)
+        if (D->parts[k] > 1) {
+            D->lev_axis[D->nlev] = k;
+            D->lev_cells[D->nlev] = cells;
+            cells *= D->parts[k];
+            D->nlev++;
+        }
 }
 
 /* ---- storage ---- */
@@ -506,7 +590,7 @@ static int reserve_charges(psys_system *s, size_t m)
     return 0;
 }
 
-/* Collective: re-cut the slabs, move every owned particle to its slab's rank
+/* Collective: re-cut the grid, move every owned particle to its box's rank
  * with ghost copies to the ranks that need it, rebuild the local system and
  * the halo plan. 0 on success on every rank. */
 static int redistribute(psys__domain *D)
@@ -514,7 +598,7 @@ static int redistribute(psys__domain *D)
     const int d = D->dim, R = D->size;
     const size_t rl = REC_LEN(d);
     psys_system *s = D->local;
-    int ok = cut_slabs(D) == 0;
+    int ok = cut_grid(D) == 0;
     /* records to send: counted, then packed by destination */
     for (int r = 0; r < R; r++)
         D->mcount[r] = 0;
@@ -535,7 +619,7 @@ static int redistribute(psys__domain *D)
         for (size_t i = 0; i < D->nloc; i++) {
             if (!D->own[i])
                 continue;
-            double q = s->x[i * d + D->axis];
+            const double *q = s->x + i * d;
             int o = owner_of(D, q);
             for (int r = 0; r < R; r++) {
                 if (r != o && !needed_by(D, q, r))
@@ -618,7 +702,7 @@ static int redistribute(psys__domain *D)
         D->scount[r] = D->rcount[r] = 0;
     size_t ns = 0;
     for (size_t i = 0; i < m; i++) {
-        double q = s->x[i * d + D->axis];
+        const double *q = s->x + i * d;
         if (D->own[i]) {
             for (int r = 0; r < R; r++)
                 if (r != D->rank && needed_by(D, q, r)) {
@@ -641,7 +725,7 @@ static int redistribute(psys__domain *D)
         for (int r = 0; r < R; r++)
             D->scount[r] = D->rcount[r] = 0;
         for (size_t i = 0; i < m; i++) {
-            double q = s->x[i * d + D->axis];
+            const double *q = s->x + i * d;
             if (D->own[i]) {
                 for (int r = 0; r < R; r++)
                     if (r != D->rank && needed_by(D, q, r))
@@ -810,10 +894,11 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     D->skin = isfinite(delta) && delta >= 0 ? skin : INFINITY;
     D->charges = g->ncharge > 0;
     const size_t nb = (size_t)R * DOMAIN_BINS;
-    D->bin_rank = psys__calloc(nb, sizeof(int));
+    for (int L = 0; L < 3; L++)
+        D->bin_part[L] = psys__calloc(nb, sizeof(int)); /* cells·parts = at most R at every level */
     D->hist = psys__calloc(nb, sizeof(uint64_t));
-    D->slab_lo = psys__calloc((size_t)R, sizeof(double));
-    D->slab_hi = psys__calloc((size_t)R, sizeof(double));
+    D->reg_lo = psys__calloc(3 * (size_t)R, sizeof(double));
+    D->reg_hi = psys__calloc(3 * (size_t)R, sizeof(double));
     D->scount = psys__calloc((size_t)R, sizeof(int));
     D->rcount = psys__calloc((size_t)R, sizeof(int));
     D->soff = psys__calloc((size_t)R + 1, sizeof(size_t));
@@ -827,7 +912,7 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     D->rmdispl = psys__calloc((size_t)R, sizeof(int));
     psys_error e;
     D->local = psys_system_create(d, &e);
-    int ok = D->bin_rank && D->hist && D->slab_lo && D->slab_hi && D->scount && D->rcount && D->soff && D->roff
+    int ok = D->bin_part[0] && D->bin_part[1] && D->bin_part[2] && D->hist && D->reg_lo && D->reg_hi && D->scount && D->rcount && D->soff && D->roff
              && D->req && D->stat && D->gath && D->mcount && D->mdispl && D->rmcount && D->rmdispl && D->local;
     /* the local system: the same box, threads and force objects in the same order */
     psys_system *s = D->local;
@@ -852,7 +937,7 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     }
     /* Every rank starts with every particle (all loaded the scene) and takes
      * a contiguous block of indices as its own; the first redistribution
-     * then cuts the slabs and moves the particles to them. */
+     * then cuts the grid and moves the particles to their boxes. */
     const size_t n = g->n;
     if (ok)
         ok = reserve_local(D, n ? n : 1) == 0 && psys__system_reserve(s, n ? n : 1) == PSYS_OK
@@ -876,11 +961,11 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
             s->ncharge = n;
         D->nloc = n;
         s->own_mark = D->own;
-        /* the slab axis: the longest of the box, else of the particles' extent */
-        double len[3] = {0, 0, 0}, lo[3] = {0, 0, 0};
+        /* the grid of ranks from the box's extent, else the particles' */
+        double len[3] = {1, 1, 1};
         for (int k = 0; k < d; k++) {
             if (g->box.on) {
-                lo[k] = g->box.lo[k];
+                D->lo[k] = g->box.lo[k];
                 len[k] = g->box.len[k];
             } else {
                 double mn = INFINITY, mx = -INFINITY;
@@ -889,18 +974,16 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
                     mn = q < mn ? q : mn;
                     mx = q > mx ? q : mx;
                 }
-                lo[k] = mn;
+                D->lo[k] = isfinite(mn) ? mn : 0.0;
                 len[k] = mx - mn;
             }
+            if (!(len[k] > 0) || !isfinite(len[k]))
+                len[k] = 1.0;
+            D->len[k] = len[k];
+            D->periodic[k] = g->box.on && g->box.periodic[k];
         }
-        D->axis = 0;
-        for (int k = 1; k < d; k++)
-            if (len[k] > len[D->axis])
-                D->axis = k;
-        D->periodic = g->box.on && g->box.periodic[D->axis];
         D->fixed_range = g->box.on;
-        D->lo = lo[D->axis];
-        D->len = len[D->axis] > 0 ? len[D->axis] : 1.0;
+        choose_parts(D, len);
     }
     int all = 0;
     MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
@@ -914,6 +997,11 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
 }
 
 size_t psys__domain_owned(const psys__domain *D) { return D->nown; }
+void psys__domain_parts(const psys__domain *D, int parts[3])
+{
+    for (int k = 0; k < 3; k++)
+        parts[k] = D->parts[k];
+}
 size_t psys__domain_ghosts(const psys__domain *D) { return D->nloc - D->nown; }
 size_t psys__domain_redistributions(const psys__domain *D) { return D->redistributions; }
 

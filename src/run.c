@@ -314,4 +314,13 @@ void psys_run_domain_counts(const psys_run *r, size_t *owned, size_t *ghosts, si
     if (redistributions)
         *redistributions = r->dd ? psys__domain_redistributions(r->dd) : 0;
 }
+
+void psys_run_domain_grid(const psys_run *r, int parts[3])
+{
+    if (r->dd) {
+        psys__domain_parts(r->dd, parts);
+        return;
+    }
+    parts[0] = parts[1] = parts[2] = 1;
+}
 #endif

@@ -3,7 +3,8 @@
  * particle owned by exactly one rank) and the forces equal the serial ones
  * bit for bit, for the direct, grid and Barnes–Hut methods, with springs.
  * With a scene (argv[1], the 2,048-atom melt): psys_run_decompose spreads the
- * particles (each owned once, balanced, fewer than all held per rank), the
+ * particles over a grid of boxes (each owned once, balanced, fewer than all
+ * held per rank; 4 ranks cut the cube 2×2×1), the
  * state gathered on rank 0 equals the serial run's bit for bit (verlet) or
  * to rounding (rk45), after particles have migrated. */
 #include "psys/psys_mpi.h"
@@ -91,6 +92,11 @@ static void domain_case(const char *path, const char *integrator, double tol)
             CHECK(most < n);                                 /* no rank holds every particle */
         if (rank != 0)
             CHECK(psys_system_count(dsys) == 0);             /* the scene's copy was released */
+        int parts[3];
+        psys_run_domain_grid(dr, parts);
+        CHECK(parts[0] * parts[1] * parts[2] == size);
+        if (size == 4) /* a cube: 2×2×1, not four slabs */
+            CHECK(parts[0] == 2 && parts[1] == 2 && parts[2] == 1);
     }
     for (int half = 0; half < 2; half++) {
         for (int k = 0; k < 30; k++) {

@@ -31,7 +31,8 @@ size_t psys_system_comm_owned(const psys_system *sys);
 
 /** Spread the run's particles over the ranks of comm (domain decomposition,
  *  docs/mpi.md): every rank must have created the run from the same scene.
- *  Each rank then integrates only the particles of its slab of space, with
+ *  Space is cut into a grid of R boxes (px·py·pz = R, near cubes). Each
+ *  rank then integrates only the particles of its box, with
  *  ghost copies of the particles within the pair forces' range (and skin),
  *  and psys_run_step becomes collective. On ranks other than 0 the scene's
  *  system is emptied (its particles and force objects freed); rank 0's is
@@ -50,6 +51,9 @@ psys_status psys_run_gather(psys_run *run, psys_error *err);
 /** Particles this rank owns and holds as ghosts, and the redistributions so
  *  far (all 0 when the run is not decomposed). */
 void psys_run_domain_counts(const psys_run *run, size_t *owned, size_t *ghosts, size_t *redistributions);
+
+/** Ranks along each axis of the decomposition's grid (1, 1, 1 when not decomposed). */
+void psys_run_domain_grid(const psys_run *run, int parts[3]);
 
 #ifdef __cplusplus
 }
