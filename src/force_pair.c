@@ -513,6 +513,10 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             } else {
                 for (size_t t = 0; t < nc; t++) {
                     uint32_t c = g->changed[t];
+                    if (own && !own[c]) { /* a domain's ghost: the owned rows near it */
+                        psys__pair_grid_mark_near(g, m, d, c, own, g->mark);
+                        continue;
+                    }
                     for (uint32_t q = 0; q < g->nb_num[c]; q++)
                         g->mark[g->nb[g->nb_start[c] + q]] |= 1;
                 }

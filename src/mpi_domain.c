@@ -89,7 +89,6 @@ struct psys__domain {
     size_t *gid;
     unsigned char *own;
     double *xref;    /* cap·dim: positions at the last redistribution */
-    double *ybuf;    /* 2·cap·dim: the state an evaluation sees, ghosts filled in */
     double *ysave;   /* 2·cap·dim: the state before a step */
     /* halo plan: local indices sent to / received from each rank */
     int *scount, *rcount;     /* size: particles */
@@ -142,7 +141,6 @@ void psys__domain_free(psys__domain *D)
     free(D->gid);
     free(D->own);
     free(D->xref);
-    free(D->ybuf);
     free(D->ysave);
     free(D->scount);
     free(D->rcount);
@@ -386,7 +384,6 @@ static int reserve_local(psys__domain *D, size_t m)
     GROW(gid, cap)
     GROW(own, cap)
     GROW(xref, cap * d)
-    GROW(ybuf, 2 * cap * d)
     GROW(ysave, 2 * cap * d)
     GROW(ridx, cap)
 #undef GROW
@@ -439,6 +436,12 @@ static void owned_displacements(const psys__domain *D, const double *x, double t
 {
     const int d = D->dim;
     const psys__box *box = &D->local->box;
+    bool per[3];
+    double half[3];
+    for (int k = 0; k < 3; k++) {
+        per[k] = box->on && box->periodic[k];
+        half[k] = 0.5 * box->len[k];
+    }
     double m1 = 0, m2 = 0;
     for (size_t i = 0; i < D->nloc; i++) {
         if (!D->own[i])
@@ -446,8 +449,12 @@ static void owned_displacements(const psys__domain *D, const double *x, double t
         double r2 = 0;
         for (int k = 0; k < d; k++) {
             double dx = x[i * d + k] - D->xref[i * d + k];
-            if (box->on && box->periodic[k])
-                dx -= box->len[k] * nearbyint(dx / box->len[k]);
+            if (per[k]) { /* positions are wrapped after every step: |dx| < 1.5 boxes */
+                if (dx > half[k])
+                    dx -= box->len[k];
+                else if (dx < -half[k])
+                    dx += box->len[k];
+            }
             r2 += dx * dx;
         }
         if (r2 > m1) {
@@ -482,19 +489,20 @@ static void dd_set_time(void *ctx, double t)
     D->inner.set_time(D->inner.ctx, t);
 }
 
-/* Ghosts' derivatives are 0: their state is the owners' business, and is
- * overwritten by the next halo exchange. */
+/* The ghosts' entries of y are overwritten with their owners' values (y is
+ * a solver's trial state in its own buffer, never the current state; the
+ * solvers then carry the owners' values on, since ghosts' derivatives are
+ * 0). Ghosts' state is their owners' business. */
 static psys_status dd_derivative(void *ctx, double t, const double *y, double *ydot)
 {
     psys__domain *D = ctx;
     const size_t d = (size_t)D->dim, nd = D->nloc * d;
-    if (nd)
-        memcpy(D->ybuf, y, 2 * nd * sizeof(double));
-    int failed = halo_exchange(D, D->ybuf) != 0;
+    double *yw = (double *)y; /* the solver's buffer, not a const object */
+    int failed = halo_exchange(D, yw) != 0;
     double in[3] = {0, 0, 0};
     if (isfinite(D->delta))
-        owned_displacements(D, D->ybuf, in);
-    psys_status st = failed ? PSYS_ERR_INVALID : D->inner.derivative(D->inner.ctx, t, D->ybuf, ydot);
+        owned_displacements(D, yw, in);
+    psys_status st = failed ? PSYS_ERR_INVALID : D->inner.derivative(D->inner.ctx, t, yw, ydot);
     in[2] = st != PSYS_OK ? 1.0 : 0.0;
     /* every rank's two largest displacements and failure flag */
     if (MPI_Allgather(in, 3, MPI_DOUBLE, D->gath, 3, MPI_DOUBLE, D->comm) != MPI_SUCCESS)
@@ -854,7 +862,11 @@ static const char *unsupported(const psys_system *g, const char *integrator, dou
         double r = def.law == PSYS_PAIR_LENNARD_JONES ? def.cutoff
                    : def.law == PSYS_PAIR_SOFT_REPULSION ? def.radius
                                                          : INFINITY;
-        double s = def.method == PSYS_PAIR_GRID && def.skin > 0 ? def.skin : 0.1 * r;
+        /* the ghosts' skin: twice the lists' (or 0.2 of the range), so
+         * particles migrate about half as often as the lists are rebuilt
+         * (each migration also rebuilds them and empties the force cache);
+         * the extra ghosts cost only their halo messages */
+        double s = 2 * (def.method == PSYS_PAIR_GRID && def.skin > 0 ? def.skin : 0.1 * r);
         if (!(r > range))
             r = range;
         range = r;

@@ -446,6 +446,11 @@ static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
 bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e);
 /** Free grid storage. */
 void psys__pair_grid_free(pair_grid *g);
+/** MPI domain (ghosts have no lists): mark (|= 1) every owned particle in the
+ *  cells around ghost c's cell at the last build, the cells a list build
+ *  scans: a superset of the owned particles whose lists hold c. */
+void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, uint32_t c, const unsigned char *own,
+                               unsigned char *mark);
 /** Grow grid per-particle storage to cap particles. */
 bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 

@@ -361,6 +361,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
         pair_grid *g = &p->grid;                                                                             \
         int over = 0;                                                                                        \
         const bool use512 = scan_has_avx512();                                                               \
+        const unsigned char *own = p->sys->own_mark; /* MPI domain (mpi_domain.c): owned rows only */          \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1) reduction(|: over))        \
         for (size_t c = 0; c < nchunks; c++) {                                                               \
@@ -368,6 +369,11 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
             size_t pos = g->chunk_off[c], end = g->chunk_off[c + 1];                                         \
             size_t i1 = (c + 1) * CHUNK < n ? (c + 1) * CHUNK : n;                                           \
             for (size_t i = c * CHUNK; i < i1; i++) {                                                        \
+                if (own && !own[i]) { /* a domain's ghost: its row is never evaluated */                     \
+                    g->nb_start[i] = pos;                                                                    \
+                    g->nb_num[i] = 0;                                                                        \
+                    continue;                                                                                \
+                }                                                                                            \
                 size_t room = end - pos;                                                                     \
                 size_t k = visit_d(p, sc, m, x, i, g->nb + pos, room, tmp, rl2, HALF, D, use512);            \
                 g->nb_start[i] = pos;                                                                        \
@@ -386,6 +392,46 @@ FILL_FN(fill_2, 2, false)
 FILL_FN(fill_3, 3, false)
 FILL_FN(fill_2h, 2, true)
 FILL_FN(fill_3h, 3, true)
+
+void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, uint32_t c, const unsigned char *own,
+                               unsigned char *mark)
+{
+    uint32_t cell = g->cell_of[c];
+    int cc[3] = {0, 0, 0}, lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    cc[0] = (int)(cell % (uint32_t)g->ncell[0]);
+    cc[1] = (int)(cell / (uint32_t)g->ncell[0] % (uint32_t)g->ncell[1]);
+    cc[2] = (int)(cell / ((uint32_t)g->ncell[0] * (uint32_t)g->ncell[1]));
+    for (int k = 0; k < 3; k++) {
+        if (k >= d) {
+            lo[k] = hi[k] = 0;
+        } else if (m->per[k] && g->ncell[k] < 5) {
+            lo[k] = -cc[k];
+            hi[k] = g->ncell[k] - 1 - cc[k];
+        } else {
+            lo[k] = -2;
+            hi[k] = 2;
+        }
+    }
+    for (int a2 = lo[2]; a2 <= hi[2]; a2++)
+        for (int a1 = lo[1]; a1 <= hi[1]; a1++)
+            for (int a0 = lo[0]; a0 <= hi[0]; a0++) {
+                int w[3] = {cc[0] + a0, cc[1] + a1, cc[2] + a2}, skip = 0;
+                for (int k = 0; k < d; k++) {
+                    if (m->per[k])
+                        w[k] = (w[k] % g->ncell[k] + g->ncell[k]) % g->ncell[k];
+                    else if (w[k] < 0 || w[k] >= g->ncell[k])
+                        skip = 1;
+                }
+                if (skip)
+                    continue;
+                size_t q = (size_t)w[0] + (size_t)g->ncell[0] * ((size_t)w[1] + (size_t)g->ncell[1] * (size_t)w[2]);
+                for (uint32_t t = g->cell_start[q]; t < g->cell_start[q + 1]; t++) {
+                    uint32_t i = g->cell_list[t];
+                    if (own[i])
+                        mark[i] |= 1;
+                }
+            }
+}
 
 static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, bool half)
 {
@@ -539,10 +585,13 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
         if (exact)
             return false; /* cannot happen: the counts do not change */
     }
-    size_t total = 0;
-    for (size_t i = 0; i < n; i++)
+    size_t total = 0, listed = 0;
+    const unsigned char *own = p->sys->own_mark;
+    for (size_t i = 0; i < n; i++) {
         total += g->nb_num[i];
-    g->per_particle = (double)total / (double)n;
+        listed += !own || own[i];
+    }
+    g->per_particle = (double)total / (double)(listed ? listed : 1);
     p->stats.pairs = half ? total : total / 2;
 
     memcpy(g->xref, x, n * (size_t)d * sizeof(double));

@@ -87,9 +87,8 @@ static void domain_case(const char *path, const char *integrator, double tol)
         MPI_Allreduce(&own, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
         MPI_Allreduce(&held, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
         CHECK(total == n);                                   /* each particle owned by one rank */
-        CHECK((double)owned < 1.25 * (double)n / size);      /* balanced slabs */
-        if (size >= 4)
-            CHECK(most < n);                                 /* no rank holds every particle */
+        CHECK((double)owned < 1.25 * (double)n / size);      /* balanced boxes */
+        (void)most;
         if (rank != 0)
             CHECK(psys_system_count(dsys) == 0);             /* the scene's copy was released */
         int parts[3];
@@ -121,8 +120,18 @@ static void domain_case(const char *path, const char *integrator, double tol)
         }
     }
     psys_run_domain_counts(dr, &owned, &ghosts, &redis);
-    if (size > 1)
+    if (size > 1) {
         CHECK(redis >= 3); /* the first cut and at least two migrations */
+        /* Memory is distributed: on 4 ranks (boxes of 6.7σ, ghosts within
+         * 3.1σ) no rank holds every particle once the lattice has melted
+         * (at the start a lattice plane may miss the narrow gap). */
+        unsigned long long held = owned + ghosts, most = 0;
+        MPI_Allreduce(&held, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
+        if (rank == 0 && getenv("PSYS_TEST_VERBOSE"))
+            printf("%s on %d ranks: most held %llu of %zu, %zu redistributions\n", integrator, size, most, n, redis);
+        if (size >= 4)
+            CHECK(most < n);
+    }
     psys_run_destroy(sr);
     psys_run_destroy(dr);
     psys_scene_destroy(ss);
