@@ -162,8 +162,7 @@ size_t psys__domain_redistributions(const psys__domain *D);
 void psys__domain_parts(const psys__domain *D, int parts[3]);
 /** Collective: rank 0's g gets every particle's state and the clock. */
 psys_status psys__domain_gather(psys__domain *D, psys_system *g);
-/** Free g's particles and force objects (ranks other than 0 after decomposing). */
-void psys__domain_release(psys_system *g);
+
 #else
 static inline const unsigned char *psys__dist_mark(const psys_system *s)
 {
@@ -229,6 +228,9 @@ psys_status psys__system_add_particle_unique(psys_system *s, const double *x, co
                                              const char *id, size_t *index);
 /** Grow the particle arrays to hold at least want particles. */
 psys_status psys__system_reserve(psys_system *s, size_t want);
+/** Free every particle and force object of s, leaving an empty system (MPI
+ *  ranks other than 0 after decomposing a run). */
+void psys__system_release(psys_system *s);
 /** Remove particles n.. (undoing a partly built structure); they must not be
  *  referred to by forces, controllers or anything else yet. */
 void psys__system_truncate(psys_system *s, size_t n);

@@ -1074,28 +1074,3 @@ done:
     free(displs);
     return st;
 }
-
-void psys__domain_release(psys_system *g)
-{
-    for (size_t k = 0; k < g->nforces; k++)
-        if (g->forces[k].cls->destroy)
-            g->forces[k].cls->destroy(g->forces[k].data);
-    g->nforces = 0;
-    for (size_t i = 0; i < g->n; i++)
-        free(g->ids[i]);
-    free(g->x);
-    free(g->v);
-    free(g->f);
-    free(g->mass);
-    free(g->inv_mass);
-    free(g->flags);
-    free(g->ids);
-    free(g->id_index);
-    free(g->charge);
-    g->x = g->v = g->f = g->mass = g->inv_mass = g->charge = NULL;
-    g->flags = NULL;
-    g->ids = NULL;
-    g->id_index = NULL;
-    g->n = g->cap = g->nids = g->id_index_cap = 0;
-    g->ncharge = g->charge_cap = 0;
-}

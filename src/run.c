@@ -287,7 +287,7 @@ psys_status psys_run_decompose(psys_run *r, MPI_Comm comm, psys_error *err)
     int rank = 0;
     MPI_Comm_rank(comm, &rank);
     if (rank != 0)
-        psys__domain_release(r->scene->sys); /* only rank 0 keeps the whole system, for output */
+        psys__system_release(r->scene->sys); /* only rank 0 keeps the whole system, for output */
     psys__ok(err);
     return PSYS_OK;
 }

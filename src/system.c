@@ -21,22 +21,15 @@ psys_system *psys_system_create(int dim, psys_error *err)
     return s;
 }
 
-void psys_system_destroy(psys_system *s)
+/* Free the force objects' data and every per-particle array. */
+static void free_particles_and_forces(psys_system *s)
 {
-    if (!s)
-        return;
     for (size_t i = 0; i < s->nforces; i++)
         if (s->forces[i].cls->destroy)
             s->forces[i].cls->destroy(s->forces[i].data);
     for (size_t i = 0; i < s->n; i++)
         free(s->ids[i]);
-    for (size_t k = 0; k < s->nctrl; k++)
-        psys__controller_free(&s->ctrl[k]);
-    free(s->ctrl);
-    free(s->planes);
-    free(s->scratch);
     free(s->charge);
-    free(s->forces);
     free(s->x);
     free(s->v);
     free(s->f);
@@ -45,6 +38,32 @@ void psys_system_destroy(psys_system *s)
     free(s->flags);
     free(s->ids);
     free(s->id_index);
+}
+
+void psys__system_release(psys_system *s)
+{
+    free_particles_and_forces(s);
+    s->nforces = 0;
+    s->springs = NULL;
+    s->x = s->v = s->f = s->mass = s->inv_mass = s->charge = NULL;
+    s->flags = NULL;
+    s->ids = NULL;
+    s->id_index = NULL;
+    s->n = s->cap = s->nids = s->id_index_cap = 0;
+    s->ncharge = s->charge_cap = 0;
+}
+
+void psys_system_destroy(psys_system *s)
+{
+    if (!s)
+        return;
+    free_particles_and_forces(s);
+    for (size_t k = 0; k < s->nctrl; k++)
+        psys__controller_free(&s->ctrl[k]);
+    free(s->ctrl);
+    free(s->planes);
+    free(s->scratch);
+    free(s->forces);
 #ifdef PSYS_MPI
     psys__dist_free(s->dist);
 #endif
