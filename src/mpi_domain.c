@@ -114,6 +114,7 @@ struct psys__domain {
     bool stale;               /* an evaluation found the ghosts could be incomplete */
     size_t bad;               /* global index of the first non-finite particle of a failed step */
     size_t redistributions;
+    void *grown;              /* GROW_BUF's result before it is stored */
     psys_error err;
 };
 
@@ -354,6 +355,8 @@ static void choose_parts(psys__domain *D, const double *len)
 
 /* ---- storage ---- */
 
+/* A buffer p of *cap elements of size bytes, grown (doubling) to hold want;
+ * NULL on failure, with p and *cap as they were. */
 static void *grow(void *p, size_t *cap, size_t want, size_t size)
 {
     if (want <= *cap && p)
@@ -366,6 +369,9 @@ static void *grow(void *p, size_t *cap, size_t want, size_t size)
         *cap = c;
     return q;
 }
+/* D->field grown to hold want elements; false (and the buffer kept) on failure. */
+#define GROW_BUF(field, cap, want) \
+    ((D->grown = grow((field), &(cap), (want), sizeof *(field))) != NULL && ((field) = D->grown, true))
 
 /* Local arrays for m particles (0 on success). */
 static int reserve_local(psys__domain *D, size_t m)
@@ -619,7 +625,7 @@ static int redistribute(psys__domain *D)
                 at += (size_t)D->mcount[r];
                 D->mcount[r] = 0;
             }
-            if (at > (size_t)INT_MAX || !(D->msend = grow(D->msend, &D->msend_cap, at ? at : 1, sizeof(double)))) {
+            if (at > (size_t)INT_MAX || !GROW_BUF(D->msend, D->msend_cap, at ? at : 1)) {
                 ok = 0;
                 break;
             }
@@ -661,8 +667,8 @@ static int redistribute(psys__domain *D)
         at += (size_t)D->rmcount[r];
     }
     const size_t m = at / rl;
-    ok = at <= (size_t)INT_MAX && (D->mrecv = grow(D->mrecv, &D->mrecv_cap, at ? at : 1, sizeof(double)))
-         && (D->order = grow(D->order, &D->order_cap, m ? m : 1, sizeof *D->order)) && reserve_local(D, m) == 0
+    ok = at <= (size_t)INT_MAX && GROW_BUF(D->mrecv, D->mrecv_cap, at ? at : 1)
+         && GROW_BUF(D->order, D->order_cap, m ? m : 1) && reserve_local(D, m) == 0
          && psys__system_reserve(s, m) == PSYS_OK && (!D->charges || reserve_charges(s, m) == 0);
     MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
     if (!all)
@@ -721,9 +727,9 @@ static int redistribute(psys__domain *D)
             D->rcount[owner_of(D, q)]++;
         }
     }
-    ok = (D->sidx = grow(D->sidx, &D->scap, ns ? ns : 1, sizeof(size_t))) != NULL
-         && (D->sbuf = grow(D->sbuf, &D->sbuf_cap, (ns ? ns : 1) * 2 * (size_t)d, sizeof(double))) != NULL
-         && (D->rbuf = grow(D->rbuf, &D->rbuf_cap, (m - D->nown + 1) * 2 * (size_t)d, sizeof(double))) != NULL;
+    ok = GROW_BUF(D->sidx, D->scap, ns ? ns : 1)
+         && GROW_BUF(D->sbuf, D->sbuf_cap, (ns ? ns : 1) * 2 * (size_t)d)
+         && GROW_BUF(D->rbuf, D->rbuf_cap, (m - D->nown + 1) * 2 * (size_t)d);
     if (ok) {
         D->soff[0] = D->roff[0] = 0;
         for (int r = 0; r < R; r++) {
@@ -1020,25 +1026,19 @@ size_t psys__domain_redistributions(const psys__domain *D) { return D->redistrib
 /* Collective: rank 0's system g gets every particle's state and the clock. */
 psys_status psys__domain_gather(psys__domain *D, psys_system *g)
 {
+    /* the migration buffers serve as scratch (no allocation once they are large enough) */
     const size_t d = (size_t)D->dim, rl = 1 + 2 * d;
     const psys_system *s = D->local;
-    int mine = (int)(D->nown * rl), *counts = NULL, *displs = NULL;
-    double *send = psys__calloc(D->nown ? D->nown * rl : 1, sizeof(double)), *recv = NULL;
-    int ok = send != NULL;
-    if (D->rank == 0) {
-        counts = psys__calloc((size_t)D->size, sizeof(int));
-        displs = psys__calloc((size_t)D->size, sizeof(int));
-        recv = psys__calloc(g->n ? g->n * rl : 1, sizeof(double));
-        ok = ok && counts && displs && recv;
-    }
+    const size_t want = D->rank == 0 ? g->n * rl : 0;
+    int ok = D->nown * rl <= (size_t)INT_MAX && want <= (size_t)INT_MAX
+             && GROW_BUF(D->msend, D->msend_cap, D->nown * rl + 1)
+             && GROW_BUF(D->mrecv, D->mrecv_cap, want + 1);
     int all = 0;
     MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
-    psys_status st = PSYS_OK;
-    if (!all) {
-        st = psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory gathering the particles on rank 0");
-        goto done;
-    }
-    double *b = send;
+    if (!all)
+        return psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory gathering the particles on rank 0");
+    int mine = (int)(D->nown * rl);
+    double *b = D->msend;
     for (size_t i = 0; i < D->nloc; i++) {
         if (!D->own[i])
             continue;
@@ -1047,18 +1047,21 @@ psys_status psys__domain_gather(psys__domain *D, psys_system *g)
         memcpy(b + 1 + d, s->v + i * d, d * sizeof(double));
         b += rl;
     }
-    MPI_Gather(&mine, 1, MPI_INT, counts, 1, MPI_INT, 0, D->comm);
+    if (MPI_Gather(&mine, 1, MPI_INT, D->rmcount, 1, MPI_INT, 0, D->comm) != MPI_SUCCESS)
+        return psys__fail(&D->err, PSYS_ERR_INVALID, "MPI gather of the particles failed");
     if (D->rank == 0) {
         int at = 0;
         for (int r = 0; r < D->size; r++) {
-            displs[r] = at;
-            at += counts[r];
+            D->rmdispl[r] = at;
+            at += D->rmcount[r];
         }
     }
-    MPI_Gatherv(send, mine, MPI_DOUBLE, recv, counts, displs, MPI_DOUBLE, 0, D->comm);
+    if (MPI_Gatherv(D->msend, mine, MPI_DOUBLE, D->mrecv, D->rmcount, D->rmdispl, MPI_DOUBLE, 0, D->comm)
+        != MPI_SUCCESS)
+        return psys__fail(&D->err, PSYS_ERR_INVALID, "MPI gather of the particles failed");
     if (D->rank == 0) {
         for (size_t t = 0; t < g->n; t++) {
-            const double *r = recv + t * rl;
+            const double *r = D->mrecv + t * rl;
             size_t i = (size_t)r[0];
             if (i < g->n) {
                 memcpy(g->x + i * d, r + 1, d * sizeof(double));
@@ -1067,10 +1070,5 @@ psys_status psys__domain_gather(psys__domain *D, psys_system *g)
         }
         g->t = s->t;
     }
-done:
-    free(send);
-    free(recv);
-    free(counts);
-    free(displs);
-    return st;
+    return PSYS_OK;
 }
