@@ -42,7 +42,7 @@
  *
  * The library keeps no global state: everything lives in the psys__domain
  * of one run. */
-#include "internal.h"
+#include "solver.h"
 #include "psys/psys_mpi.h"
 
 #include <limits.h>
@@ -565,6 +565,8 @@ static int make_solver(psys__domain *D)
     o.derivative = dd_derivative;
     o.reduce_sum = dd_reduce_sum;
     o.block = D->dim;
+    if (D->solver && psys__solver_rebind(D->solver, &o) == PSYS_OK)
+        return 0; /* the same solver, settings and next step size; no allocation once large enough */
     if (D->solver) {
         D->h_next = psys_solver_next_step(D->solver);
         D->rejected += psys_solver_rejected_steps(D->solver);

@@ -48,6 +48,7 @@ psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_erro
     s->cls = cls;
     s->ode = *ode;
     s->n = ode->size;
+    s->cap = ode->size;
     s->tol = 1e-6;
     s->threads = 1;
     s->cg_tol = 1e-6;
@@ -133,6 +134,25 @@ psys_status psys_solver_step(psys_solver *s, double h_max, double *h_taken)
     if (h_taken)
         *h_taken = st == PSYS_OK ? h : 0.0;
     return st;
+}
+
+psys_status psys__solver_rebind(psys_solver *s, const psys_ode *ode)
+{
+    if (s->cls->init || (s->cls->second_order_only && (ode->npos == 0 || 2 * ode->npos != ode->size)))
+        return PSYS_ERR_UNSUPPORTED;
+    if (ode->size > s->cap) {
+        size_t cap = ode->size + ode->size / 2; /* room for the next few migrations */
+        for (int i = 0; i < s->cls->nbuf; i++) {
+            double *p = psys__realloc(s->buf[i], cap, sizeof(double));
+            if (!p)
+                return PSYS_ERR_NOMEM; /* buffers grown so far stay valid and larger */
+            s->buf[i] = p;
+        }
+        s->cap = cap;
+    }
+    s->ode = *ode;
+    s->n = ode->size;
+    return PSYS_OK;
 }
 
 psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)

@@ -21,6 +21,7 @@ struct psys_solver {
     const psys__solver_class *cls;
     psys_ode ode;
     size_t n;
+    size_t cap;                  /* length the scratch vectors hold (>= n; psys__solver_rebind) */
     double *buf[PSYS__MAX_BUFS]; /* scratch vectors of length n, allocated once */
     double tol;
     int threads;      /* psys_solver_set_threads: 0 = OpenMP's default */
@@ -55,6 +56,12 @@ extern const psys__solver_class psys__symplectic_euler, psys__verlet, psys__impl
 int psys__solver_threads(const psys_solver *s);
 /** Project y1 at t1, check it is finite, then set_state(y1) and set_time(t1). */
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);
+/** Point the solver at another ODE of the same kind but maybe another size
+ *  (an MPI domain's local particles after a migration), keeping its
+ *  settings and step-size state; the scratch vectors grow only when the new
+ *  size exceeds their length. PSYS_ERR_UNSUPPORTED for solvers with state of
+ *  their own (implicit), PSYS_ERR_NOMEM if they cannot grow (unchanged then). */
+psys_status psys__solver_rebind(psys_solver *s, const psys_ode *ode);
 /** Evaluate the derivative at (t, y) after projecting prescribed components. */
 psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot);
 
