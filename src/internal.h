@@ -146,12 +146,10 @@ void psys__domain_free(psys__domain *D);
 psys_status psys__domain_advance(psys__domain *D, double h_max, double *h_taken);
 /** The local system (owned particles and ghosts). */
 psys_system *psys__domain_local(const psys__domain *D);
-/** The solver stepping the local system (replaced when particles migrate). */
+/** The solver stepping the local system (the same one for the whole run). */
 psys_solver *psys__domain_solver(const psys__domain *D);
 /** After a failed step: the global index of the first particle that became non-finite. */
 size_t psys__domain_bad_particle(const psys__domain *D);
-/** Steps the solver rejected, summed over the solvers the domain has had. */
-size_t psys__domain_rejected(const psys__domain *D);
 /** Message of the domain's last failure. */
 const char *psys__domain_last_error(const psys__domain *D);
 /** Particles this rank owns, holds as ghosts; redistributions so far. */

@@ -69,9 +69,8 @@ struct psys__domain {
     psys_system *local;
     psys_solver *solver;
     char integrator[32];
-    double tol, cg_tol, h_next;
+    double tol, cg_tol, h_next; /* for creating the solver */
     int cg_maxit;
-    size_t rejected; /* of the solvers already replaced */
     bool charges;    /* the system has charges: ghosts carry them */
     /* the grid of ranks: levels of cuts along the axes with more than one part */
     int parts[3];    /* ranks along each axis (product: size) */
@@ -121,10 +120,6 @@ struct psys__domain {
 psys_system *psys__domain_local(const psys__domain *D) { return D->local; }
 psys_solver *psys__domain_solver(const psys__domain *D) { return D->solver; }
 size_t psys__domain_bad_particle(const psys__domain *D) { return D->bad; }
-size_t psys__domain_rejected(const psys__domain *D)
-{
-    return D->rejected + (D->solver ? psys_solver_rejected_steps(D->solver) : 0);
-}
 
 void psys__domain_free(psys__domain *D)
 {
@@ -549,7 +544,8 @@ static void dd_reduce_sum(void *ctx, double *values, int count)
     MPI_Allreduce(MPI_IN_PLACE, values, count, MPI_DOUBLE, MPI_SUM, D->comm);
 }
 
-/* A solver for the local ODE, continuing the old one's settings. */
+/* The solver of the local ODE: created at the first decomposition, pointed
+ * at the new local particles after each migration. */
 static int make_solver(psys__domain *D)
 {
     D->inner = psys_system_ode(D->local);
@@ -565,14 +561,8 @@ static int make_solver(psys__domain *D)
     o.derivative = dd_derivative;
     o.reduce_sum = dd_reduce_sum;
     o.block = D->dim;
-    if (D->solver && psys__solver_rebind(D->solver, &o) == PSYS_OK)
-        return 0; /* the same solver, settings and next step size; no allocation once large enough */
-    if (D->solver) {
-        D->h_next = psys_solver_next_step(D->solver);
-        D->rejected += psys_solver_rejected_steps(D->solver);
-        psys_solver_destroy(D->solver);
-        D->solver = NULL;
-    }
+    if (D->solver) /* after a migration: the same solver, its settings and next step size */
+        return psys__solver_rebind(D->solver, &o) == PSYS_OK ? 0 : -1;
     psys_error e;
     psys_solver *s = psys_solver_create(D->integrator, &o, &e);
     if (!s)

@@ -166,11 +166,8 @@ static void nonfinite_message(psys_run *r, psys_error *err, double t_from)
 static psys_status advance(psys_run *r, double h_max, double *h_taken)
 {
 #ifdef PSYS_MPI
-    if (r->dd) {
-        psys_status st = psys__domain_advance(r->dd, h_max, h_taken);
-        r->solver = psys__domain_solver(r->dd); /* replaced when particles migrate */
-        return st;
-    }
+    if (r->dd)
+        return psys__domain_advance(r->dd, h_max, h_taken);
 #endif
     return psys_system_advance(r->sys, r->solver, h_max, h_taken);
 }
