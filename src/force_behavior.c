@@ -427,28 +427,53 @@ static void gather(const behavior *b, const double *src, double *out)
         memcpy(out + i * d, src + b->def.particles[i] * (size_t)d, sizeof(double) * (size_t)d);
 }
 
-static void behavior_apply(void *data, const psys_force_eval *e, double *f)
+/* The force on each of b's particles, out[i·d + c], from their positions and
+ * velocities x, v gathered in b's order (the one evaluation for apply here
+ * and for a domain decomposition's owner of the behaviour, mpi_bonded.c). */
+static void behavior_forces_of(const behavior *b, const double *x, const double *v, double *out)
 {
-    const behavior *b = data;
     int d = b->dim, nq = b->k * d, m = b->m;
-    double x[MAXQ], v[MAXQ], C[MAXM], J[MAXM * MAXQ], lam[MAXM];
-    gather(b, e->x, x);
-    gather(b, e->v, v);
+    double C[MAXM], J[MAXM * MAXQ], lam[MAXM];
     eval_cj(b, x, C, J);
     for (int r = 0; r < m; r++) {
         const double *Jr = J + r * nq;
         lam[r] = b->def.ks * C[r] + b->def.kd * dot(Jr, v, nq);
     }
+    for (int q = 0; q < nq; q++) {
+        double s = 0;
+        for (int r = 0; r < m; r++)
+            s += J[r * nq + q] * lam[r];
+        out[q] = -s;
+    }
+}
+
+static void behavior_apply(void *data, const psys_force_eval *e, double *f)
+{
+    const behavior *b = data;
+    int d = b->dim;
+    double x[MAXQ], v[MAXQ], out[MAXQ];
+    gather(b, e->x, x);
+    gather(b, e->v, v);
+    behavior_forces_of(b, x, v, out);
     for (int i = 0; i < b->k; i++) {
         double *fi = f + b->def.particles[i] * (size_t)d;
-        for (int c = 0; c < d; c++) {
-            int q = i * d + c;
-            double s = 0;
-            for (int r = 0; r < m; r++)
-                s += J[r * nq + q] * lam[r];
-            fi[c] -= s;
-        }
+        for (int c = 0; c < d; c++)
+            fi[c] += out[i * d + c]; /* f + (-s): the same bits as f - s */
     }
+}
+
+void psys__behavior_forces(const void *data, const double *x, const double *v, double *out)
+{
+    behavior_forces_of(data, x, v, out);
+}
+int psys__behavior_count(const void *data) { return ((const behavior *)data)->k; }
+size_t psys__behavior_particle(const void *data, int i) { return ((const behavior *)data)->def.particles[i]; }
+void *psys__behavior_clone(const void *data)
+{
+    behavior *b = malloc(sizeof *b);
+    if (b)
+        memcpy(b, data, sizeof *b);
+    return b;
 }
 
 static double behavior_energy(void *data, const psys_force_eval *e)

@@ -156,6 +156,9 @@ const char *psys__domain_last_error(const psys__domain *D);
 size_t psys__domain_owned(const psys__domain *D);
 size_t psys__domain_ghosts(const psys__domain *D);
 size_t psys__domain_redistributions(const psys__domain *D);
+/** Bonded terms this rank computes; forces it sends other ranks per evaluation. */
+size_t psys__domain_bond_terms(const psys__domain *D);
+size_t psys__domain_bond_sent(const psys__domain *D);
 /** Ranks along each axis of the domain's grid. */
 void psys__domain_parts(const psys__domain *D, int parts[3]);
 /** Collective: rank 0's g gets every particle's state and the clock. */
@@ -218,6 +221,24 @@ void psys__springs_truncate(void *set, size_t n);
 /** Build the spring set's evaluation plan if the set changed (allocates;
  *  PSYS_ERR_NOMEM on failure). Called before evaluating forces. */
 psys_status psys__springs_prepare(void *set);
+
+/** The order in which each particle's force receives its spring forces
+ *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists
+ *  particle i's contributions, 2k for spring k's lower-index end (-F) and
+ *  2k + 1 for its higher one (+F). */
+psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent);
+/** Spring k's force F on its higher-index end (-F on the lower) at time t,
+ *  bit-identical to the one the force loop computes. */
+void psys__springs_force(const void *set, size_t k, int d, double t, const double *xlo, const double *xhi,
+                         const double *vlo, const double *vhi, double *F);
+/** Copy of behaviour force data (force_behavior.c; free() frees it). */
+void *psys__behavior_clone(const void *data);
+/** A behaviour's particles (count, then each index). */
+int psys__behavior_count(const void *data);
+size_t psys__behavior_particle(const void *data, int i);
+/** The force a behaviour adds to each of its particles, out[i·d + c], from
+ *  their positions and velocities gathered in its order (x, v: count·d). */
+void psys__behavior_forces(const void *data, const double *x, const double *v, double *out);
 
 /* ---- structures (structures.c) ---- */
 /** Add a particle without searching for a duplicate id: the caller has made

@@ -42,9 +42,11 @@
  *
  * The library keeps no global state: everything lives in the psys__domain
  * of one run. */
+#include "mpi_bonded.h"
 #include "solver.h"
 #include "psys/psys_mpi.h"
 
+#include <float.h>
 #include <limits.h>
 #include <math.h>
 #include <stdlib.h>
@@ -79,6 +81,10 @@ struct psys__domain {
     bool fixed_range;/* the box gives the histograms' ranges */
     double lo[3], len[3]; /* histogram range along each axis */
     double delta;    /* ghost range: < 0 none, INFINITY every particle */
+    double pair_delta; /* the pair forces' part of it (< 0: none) */
+    psys__bonds *bonds;/* springs and behaviours (mpi_bonded.c), NULL = none */
+    double bond_ext; /* the longest bonded term along any axis at the last redistribution */
+    bool all_ghosts; /* every particle a ghost from now on */
     double skin;     /* displacements of two particles may add up to less than this */
     int *bin_part[3];      /* level L: lev_cells[L]·parts·DOMAIN_BINS, the part each bin goes to */
     uint64_t *hist;        /* size·DOMAIN_BINS (the largest level's histogram) */
@@ -87,6 +93,7 @@ struct psys__domain {
     size_t cap, nloc, nown;
     size_t *gid;
     unsigned char *own;
+    int *lowner;     /* the rank owning each local particle */
     double *xref;    /* cap·dim: positions at the last redistribution */
     double *ysave;   /* 2·cap·dim: the state before a step */
     /* halo plan: local indices sent to / received from each rank */
@@ -127,6 +134,7 @@ void psys__domain_free(psys__domain *D)
         return;
     psys_solver_destroy(D->solver);
     psys_system_destroy(D->local);
+    psys__bonds_free(D->bonds);
     if (D->comm != MPI_COMM_NULL)
         MPI_Comm_free(&D->comm);
     for (int L = 0; L < 3; L++)
@@ -136,6 +144,7 @@ void psys__domain_free(psys__domain *D)
     free(D->reg_hi);
     free(D->gid);
     free(D->own);
+    free(D->lowner);
     free(D->xref);
     free(D->ysave);
     free(D->scount);
@@ -384,6 +393,7 @@ static int reserve_local(psys__domain *D, size_t m)
     D->field = p;
     GROW(gid, cap)
     GROW(own, cap)
+    GROW(lowner, cap)
     GROW(xref, cap * d)
     GROW(ysave, 2 * cap * d)
     GROW(ridx, cap)
@@ -500,6 +510,8 @@ static psys_status dd_derivative(void *ctx, double t, const double *y, double *y
     const size_t d = (size_t)D->dim, nd = D->nloc * d;
     double *yw = (double *)y; /* the solver's buffer, not a const object */
     int failed = halo_exchange(D, yw) != 0;
+    if (D->bonds && psys__bonds_evaluate(D->bonds, D->comm, t, yw, D->nloc) != 0)
+        failed = 1;
     double in[3] = {0, 0, 0};
     if (isfinite(D->delta))
         owned_displacements(D, yw, in);
@@ -597,9 +609,10 @@ static int reserve_charges(psys_system *s, size_t m)
 }
 
 /* Collective: re-cut the grid, move every owned particle to its box's rank
- * with ghost copies to the ranks that need it, rebuild the local system and
- * the halo plan. 0 on success on every rank. */
-static int redistribute(psys__domain *D)
+ * with ghost copies to the ranks that need it, rebuild the local system,
+ * the halo plan and the bonded terms. 0 on success on every rank, 1 when
+ * some rank lacks a particle of one of its bonded terms, -1 on failure. */
+static int redistribute_once(psys__domain *D)
 {
     const int d = D->dim, R = D->size;
     const size_t rl = REC_LEN(d);
@@ -710,13 +723,15 @@ static int redistribute(psys__domain *D)
     for (size_t i = 0; i < m; i++) {
         const double *q = s->x + i * d;
         if (D->own[i]) {
+            D->lowner[i] = D->rank;
             for (int r = 0; r < R; r++)
                 if (r != D->rank && needed_by(D, q, r)) {
                     D->scount[r]++;
                     ns++;
                 }
         } else {
-            D->rcount[owner_of(D, q)]++;
+            D->lowner[i] = owner_of(D, q);
+            D->rcount[D->lowner[i]]++;
         }
     }
     ok = GROW_BUF(D->sidx, D->scap, ns ? ns : 1)
@@ -743,11 +758,65 @@ static int redistribute(psys__domain *D)
         }
         ok = make_solver(D) == 0;
     }
-    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_MIN, D->comm);
+    int complete = 1; /* every bonded term with an owned particle has all its particles here */
+    if (ok && D->bonds) {
+        int b = psys__bonds_localize(D->bonds, m, D->gid, D->own, D->lowner, D->rank, R);
+        ok = b >= 0;
+        complete = b != 0;
+    }
+    int flags[2] = {ok, complete}, both[2] = {0, 0};
+    MPI_Allreduce(flags, both, 2, MPI_INT, MPI_MIN, D->comm);
     D->dmax = D->dmax_step = 0;
     D->stale = false;
     D->redistributions++;
-    return all ? 0 : -1;
+    return !both[0] ? -1 : !both[1] ? 1 : 0;
+}
+
+/* The ghost range: the pair forces' and the longest bonded term's (with a
+ * margin for rounding in the boxes' edges), or every particle. */
+static void set_delta(psys__domain *D)
+{
+    double del = D->pair_delta;
+    if (D->bonds) {
+        double scale = 0;
+        for (int k = 0; k < D->dim; k++)
+            scale = fmax(scale, fabs(D->lo[k]) + D->len[k]);
+        double b = D->bond_ext + 1e-6 * D->bond_ext + 1e-9 * scale + DBL_MIN;
+        del = b > del || b != b ? b : del;
+    }
+    D->delta = D->all_ghosts || !(del == del) ? INFINITY : del;
+}
+
+/* Collective: redistribute_once with the ghost range brought up to date;
+ * if a bonded term still lacks a particle somewhere, every particle becomes
+ * a ghost. 0 on success on every rank. */
+static int redistribute(psys__domain *D)
+{
+    if (D->bonds) {
+        /* the terms' current extent (before the first redistribution, the
+         * whole system's, from psys__domain_create) */
+        double ext = D->bond_ext;
+        if (D->redistributions > 0) {
+            const size_t nd = D->nloc * (size_t)D->dim;
+            if (nd) { /* the ghosts' current positions first */
+                memcpy(D->ysave, D->local->x, nd * sizeof(double));
+                memcpy(D->ysave + nd, D->local->v, nd * sizeof(double));
+            }
+            if (halo_exchange(D, D->ysave) != 0)
+                return -1;
+            ext = psys__bonds_extent(D->bonds, D->ysave);
+        }
+        if (MPI_Allreduce(&ext, &D->bond_ext, 1, MPI_DOUBLE, MPI_MAX, D->comm) != MPI_SUCCESS)
+            return -1;
+    }
+    set_delta(D);
+    int r = redistribute_once(D);
+    if (r == 1) {
+        D->all_ghosts = true;
+        set_delta(D);
+        r = redistribute_once(D);
+    }
+    return r == 0 ? 0 : -1;
 }
 
 /* ---- stepping ---- */
@@ -796,7 +865,7 @@ psys_status psys__domain_advance(psys__domain *D, double h_max, double *h_taken)
             break;
         restore_state(D, t0);
         if (attempt == 1) /* not even a fresh decomposition holds for one step: every particle a ghost */
-            D->delta = INFINITY;
+            D->all_ghosts = true;
         if (redistribute(D) != 0)
             return psys__fail(&D->err, PSYS_ERR_NOMEM, "out of memory moving particles between MPI ranks");
         save_state(D);
@@ -848,13 +917,12 @@ static const char *unsupported(const psys_system *g, const char *integrator, dou
     double range = -1, sk = 0;
     for (size_t k = 0; k < g->nforces; k++) {
         const psys_force_class *c = g->forces[k].cls;
-        if (c == &psys_gravity_class || c == &psys_drag_class)
+        if (c == &psys_gravity_class || c == &psys_drag_class || psys__bonds_takes(c))
             continue;
         if (c != &psys_pair_class)
-            return c == &psys_spring_class         ? "the scene has springs"
-                   : c == &psys_behavior_class     ? "the scene has behaviour-function forces"
-                   : c == &psys_mouse_spring_class ? "the scene has mouse springs"
-                                                   : "the scene has a force type other than pair, gravity and drag";
+            return c == &psys_mouse_spring_class ? "the scene has mouse springs"
+                                                 : "the scene has a force type other than pair, spring, behaviour, "
+                                                   "gravity and drag";
         psys_pair_def def;
         psys_system_pair(g, k, &def);
         double r = def.law == PSYS_PAIR_LENNARD_JONES ? def.cutoff
@@ -900,7 +968,7 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     D->cg_tol = cg_tol;
     D->cg_maxit = cg_maxit;
     D->h_next = h_next;
-    D->delta = delta;
+    D->pair_delta = D->delta = delta;
     D->skin = isfinite(delta) && delta >= 0 ? skin : INFINITY;
     D->charges = g->ncharge > 0;
     const size_t nb = (size_t)R * DOMAIN_BINS;
@@ -927,6 +995,11 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
     /* the local system: the same box, threads and force objects in the same order */
     psys_system *s = D->local;
     if (ok) {
+        ok = psys__bonds_create(g, &D->bonds) == PSYS_OK;
+        if (D->bonds)
+            D->bond_ext = psys__bonds_extent_all(D->bonds, g->x);
+    }
+    if (ok) {
         s->threads = g->threads;
         s->box = g->box;
         s->t = g->t;
@@ -937,6 +1010,8 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
                 st = psys_system_add_gravity(s, psys__gravity_g(g->forces[k].data));
             } else if (c == &psys_drag_class) {
                 st = psys_system_add_drag(s, psys__drag_kd(g->forces[k].data));
+            } else if (psys__bonds_takes(c)) {
+                st = psys__bonds_add_force(D->bonds, s, k);
             } else {
                 psys_pair_def def;
                 psys_system_pair(g, k, &def);
@@ -1014,6 +1089,8 @@ void psys__domain_parts(const psys__domain *D, int parts[3])
 }
 size_t psys__domain_ghosts(const psys__domain *D) { return D->nloc - D->nown; }
 size_t psys__domain_redistributions(const psys__domain *D) { return D->redistributions; }
+size_t psys__domain_bond_terms(const psys__domain *D) { return psys__bonds_owned_terms(D->bonds); }
+size_t psys__domain_bond_sent(const psys__domain *D) { return psys__bonds_sent(D->bonds); }
 
 /* Collective: rank 0's system g gets every particle's state and the clock. */
 psys_status psys__domain_gather(psys__domain *D, psys_system *g)

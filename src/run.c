@@ -312,6 +312,14 @@ void psys_run_domain_counts(const psys_run *r, size_t *owned, size_t *ghosts, si
         *redistributions = r->dd ? psys__domain_redistributions(r->dd) : 0;
 }
 
+void psys_run_domain_bonds(const psys_run *r, size_t *computed, size_t *sent)
+{
+    if (computed)
+        *computed = r->dd ? psys__domain_bond_terms(r->dd) : 0;
+    if (sent)
+        *sent = r->dd ? psys__domain_bond_sent(r->dd) : 0;
+}
+
 void psys_run_domain_grid(const psys_run *r, int parts[3])
 {
     if (r->dd) {

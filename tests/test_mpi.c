@@ -138,11 +138,70 @@ static void domain_case(const char *path, const char *integrator, double tol)
     psys_scene_destroy(ds);
 }
 
+/* Bonded forces across ranks (springs, behaviours): each term computed by
+ * exactly one rank, some forces sent between ranks, and the trajectory the
+ * serial run's to the bit, on a scene where nothing migrates (cloth), one
+ * with migrations (polymer: bead-spring chains in a Lennard-Jones droplet)
+ * and one of behaviour functions (arm). */
+static void bonded_case(const char *path, const char *integrator, size_t min_redis)
+{
+    int rank, size;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    psys_error err;
+    psys_scene *ss = psys_scene_load_file(path, &err), *ds = psys_scene_load_file(path, &err);
+    CHECK(ss && ds);
+    if (!ss || !ds)
+        return;
+    snprintf(psys_scene_settings(ss)->integrator, sizeof psys_scene_settings(ss)->integrator, "%s", integrator);
+    snprintf(psys_scene_settings(ds)->integrator, sizeof psys_scene_settings(ds)->integrator, "%s", integrator);
+    psys_system *ssys = psys_scene_system(ss), *dsys = psys_scene_system(ds);
+    psys_system_set_threads(ssys, 1);
+    psys_system_set_threads(dsys, 1);
+    const size_t n = psys_system_count(ssys), nd = (size_t)psys_system_dim(ssys) * n;
+    unsigned long long terms = psys_system_spring_count(ssys);
+    for (size_t k = 0; k < psys_system_force_count(ssys); k++)
+        terms += psys_system_force_class(ssys, k) == &psys_behavior_class;
+    psys_run *sr = psys_run_create(ss, &err), *dr = psys_run_create(ds, &err);
+    CHECK(sr && dr);
+    CHECK(psys_run_decompose(dr, MPI_COMM_WORLD, &err) == PSYS_OK);
+    for (int k = 0; k < 40; k++) {
+        CHECK(psys_run_step(sr, &err) == PSYS_OK);
+        CHECK(psys_run_step(dr, &err) == PSYS_OK);
+    }
+    CHECK(psys_run_gather(dr, &err) == PSYS_OK);
+    if (rank == 0) {
+        CHECK(memcmp(psys_system_positions(ssys), psys_system_positions(dsys), nd * sizeof(double)) == 0);
+        CHECK(memcmp(psys_system_velocities(ssys), psys_system_velocities(dsys), nd * sizeof(double)) == 0);
+        CHECK(psys_system_time(ssys) == psys_system_time(dsys));
+    }
+    if (size > 1) {
+        size_t computed = 0, sent = 0, owned = 0, ghosts = 0, redis = 0;
+        psys_run_domain_bonds(dr, &computed, &sent);
+        psys_run_domain_counts(dr, &owned, &ghosts, &redis);
+        unsigned long long in[2] = {computed, sent}, sum[2] = {0, 0}, held = owned + ghosts, most = 0;
+        MPI_Allreduce(in, sum, 2, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+        MPI_Allreduce(&held, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
+        CHECK(sum[0] == terms); /* each term computed once */
+        CHECK(sum[1] > 0);      /* some terms cross ranks */
+        CHECK(most < n);        /* no rank holds everything */
+        CHECK(redis >= min_redis);
+        if (rank == 0 && getenv("PSYS_TEST_VERBOSE"))
+            printf("%s %s on %d ranks: %llu terms, %llu forces sent, most held %llu of %zu, %zu redistributions\n",
+                   path, integrator, size, sum[0], sum[1], most, n, redis);
+    }
+    psys_run_destroy(sr);
+    psys_run_destroy(dr);
+    psys_scene_destroy(ss);
+    psys_scene_destroy(ds);
+}
+
 /* A scene the decomposition cannot split is refused and its run left alone. */
 static void domain_refused(void)
 {
-    const char *text = "{\"psys\":1,\"dim\":2,\"dt\":0.01,\"steps\":3,\"particles\":[{\"id\":\"a\",\"x\":[0,0]},"
-                       "{\"id\":\"b\",\"x\":[1,0]}],\"forces\":[{\"type\":\"spring\",\"a\":\"a\",\"b\":\"b\",\"ks\":1}]}";
+    const char *text = "{\"psys\":1,\"dim\":2,\"dt\":0.01,\"steps\":3,\"particles\":[{\"id\":\"a\",\"x\":[0,1]},"
+                       "{\"id\":\"b\",\"x\":[1,1]}],\"forces\":[{\"type\":\"spring\",\"a\":\"a\",\"b\":\"b\",\"ks\":1}],"
+                       "\"planes\":[{\"point\":[0,0],\"normal\":[0,1]}]}";
     psys_error err;
     psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
     CHECK(sc != NULL);
@@ -154,7 +213,7 @@ static void domain_refused(void)
     psys_status st = psys_run_decompose(r, MPI_COMM_WORLD, &err);
     CHECK(st == (size > 1 ? PSYS_ERR_UNSUPPORTED : PSYS_OK));
     if (size > 1)
-        CHECK(strstr(err.message, "springs") != NULL);
+        CHECK(strstr(err.message, "planes") != NULL);
     CHECK(psys_system_count(psys_scene_system(sc)) == 2);
     CHECK(psys_run_step(r, &err) == PSYS_OK); /* still the serial run */
     psys_run_destroy(r);
@@ -200,6 +259,11 @@ int main(int argc, char **argv)
         domain_case(argv[1], "verlet", 0);
         domain_case(argv[1], "rk4", 0);
         domain_case(argv[1], "rk45", 1e-9);
+    }
+    if (argc > 4) { /* cloth, polymer, arm */
+        bonded_case(argv[2], "rk4", 0);
+        bonded_case(argv[3], "verlet", 2);
+        bonded_case(argv[4], "midpoint", 0);
     }
     domain_refused();
     int fails = check_failures, all = 0;

@@ -37,10 +37,10 @@ size_t psys_system_comm_owned(const psys_system *sys);
  *  and psys_run_step becomes collective. On ranks other than 0 the scene's
  *  system is emptied (its particles and force objects freed); rank 0's is
  *  brought up to date only by psys_run_gather. Fails with
- *  PSYS_ERR_UNSUPPORTED, leaving the run as it was, for scenes whose forces
- *  couple particles other than through pair forces (springs, behaviour
- *  functions, mouse springs, user force classes), with controllers or planes,
- *  or with the implicit-euler solver. A communicator of one rank leaves the
+ *  PSYS_ERR_UNSUPPORTED, leaving the run as it was, for scenes with mouse
+ *  springs or user force classes, with controllers or planes, or with the
+ *  implicit-euler solver (springs and behaviours are computed by the rank
+ *  owning their lowest-index particle, docs/mpi.md). A communicator of one rank leaves the
  *  run serial. Not combinable with psys_system_set_comm on the same system. */
 psys_status psys_run_decompose(psys_run *run, MPI_Comm comm, psys_error *err);
 
@@ -51,6 +51,11 @@ psys_status psys_run_gather(psys_run *run, psys_error *err);
 /** Particles this rank owns and holds as ghosts, and the redistributions so
  *  far (all 0 when the run is not decomposed). */
 void psys_run_domain_counts(const psys_run *run, size_t *owned, size_t *ghosts, size_t *redistributions);
+
+/** Bonded terms (springs, behaviours) this rank computes, and the forces on
+ *  other ranks' particles it sends them at every evaluation (0 when the run
+ *  is not decomposed); over all ranks the terms add up to the scene's. */
+void psys_run_domain_bonds(const psys_run *run, size_t *computed, size_t *sent);
 
 /** Ranks along each axis of the decomposition's grid (1, 1, 1 when not decomposed). */
 void psys_run_domain_grid(const psys_run *run, int parts[3]);

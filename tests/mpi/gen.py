@@ -92,9 +92,105 @@ def gas2d():
                        {"type": "pair", "law": "soft-repulsion", "k": 200, "radius": 0.06, "method": "grid",
                         "skin": 0.01}]}
 
+def cloth():
+    # Bonded forces across ranks: a 24x24 cloth (structural, shear and bend
+    # springs) pinned at two corners, a chain of muscles hanging from it,
+    # gravity and drag, free 3-D space. Nothing migrates (no pair forces);
+    # every spring across a cut is computed by one rank and its force sent.
+    parts = [{"id": "hook", "x": [0.6, -0.3, 0.0], "fixed": True}]
+    structs = [{"type": "cloth", "id": "sheet", "origin": [0, 0, 0], "size": [24, 24], "spacing": 0.05,
+                "axes": [[1, 0, 0], [0, 0.6, 0.8]], "mass": 0.01, "ks": 800, "kd": 0.3, "bend_ks": 60,
+                "pin": [[0, 0], [23, 0]]},
+               {"type": "chain", "id": "rope", "from": [0.6, -0.35, 0], "to": [0.6, -1.2, 0.1], "count": 12,
+                "mass": 0.02, "ks": 300, "kd": 0.1,
+                "muscle": {"amplitude": 0.2, "omega": 9, "phase_step": -0.5}}]
+    forces = [{"type": "gravity", "g": [0, 0, -9.81]},
+              {"type": "spring", "a": "hook", "b": "rope[0]", "ks": 500, "kd": 0.2},
+              {"type": "drag", "kd": 0.002}]
+    return {"psys": 1, "dim": 3, "integrator": "rk4", "dt": 0.001, "steps": 40,
+            "particles": parts, "structures": structs, "forces": forces}
+
+def polymer():
+    # Bead-spring chains in a hot Lennard-Jones droplet in free space: pair
+    # forces with migrations and springs across ranks together.
+    rnd = random.Random(23)
+    parts, forces = [], []
+    nchain, beads, b = 216, 8, 0.95
+    # each chain a random walk of steps b from a point of a 6x6x6 lattice,
+    # no bead closer than 0.8 to another, so the chains cross every cut
+    cells = {}
+
+    def free(x):
+        c = [int(math.floor(q)) for q in x]
+        return all(sum((x[q] - p[q]) ** 2 for q in range(3)) > 0.8 ** 2
+                   for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
+                   for p in cells.get((c[0] + i, c[1] + j, c[2] + k), []))
+    def walk(o):
+        chain = []
+        for k in range(beads):
+            for _ in range(200):
+                if k == 0:
+                    cand = [q + rnd.uniform(-1, 1) for q in o]
+                else:
+                    u = [rnd.gauss(0, 1) for _ in range(3)]
+                    nu = math.sqrt(sum(q * q for q in u))
+                    cand = [chain[-1][q] + b * u[q] / nu for q in range(3)]
+                cand = [round(q, 6) for q in cand]
+                if free(cand) and all(sum((cand[q] - p[q]) ** 2 for q in range(3)) > 0.8 ** 2 for p in chain):
+                    chain.append(cand)
+                    break
+            else:
+                return None
+        return chain
+    for c in range(nchain):
+        o = [(c % 6) * 2.4, ((c // 6) % 6) * 2.4, (c // 36) * 2.4]
+        for _ in range(1000):
+            chain = walk(o)
+            if chain:
+                break
+        else:
+            raise SystemExit("polymer: no room for chain %d" % c)
+        for k, x in enumerate(chain):
+            cells.setdefault(tuple(int(math.floor(q)) for q in x), []).append(x)
+            v = [round(rnd.gauss(0, 1.2), 6) for _ in range(3)]
+            parts.append({"id": "p%d.%d" % (c, k), "x": x, "v": v})
+        for k in range(beads - 1):
+            forces.append({"type": "spring", "a": "p%d.%d" % (c, k), "b": "p%d.%d" % (c, k + 1), "ks": 100,
+                           "kd": 0.5, "rest": b})
+    forces.append({"type": "pair", "law": "lennard-jones", "epsilon": 1, "sigma": 0.8, "cutoff": 2.0,
+                   "method": "grid", "skin": 0.2})
+    return {"psys": 1, "dim": 3, "integrator": "verlet", "dt": 0.002, "steps": 50,
+            "particles": parts, "forces": forces}
+
+def arm():
+    # Behaviour functions across ranks (notes section 6): 2-D chains held by
+    # distance and angle behaviours, one end of each on a circle
+    # (point-on-sphere), under gravity, with a spring between neighbours;
+    # the chains slant, so that every cut crosses some.
+    parts, forces = [], []
+    for c in range(10):
+        for k in range(12):
+            parts.append({"id": "a%d.%d" % (c, k), "x": [round(0.3 * c + 0.06 * k, 6), round(-0.11 * k, 6)],
+                          "mass": 0.05})
+        for k in range(11):
+            forces.append({"type": "behavior", "function": "distance", "particles": ["a%d.%d" % (c, k), "a%d.%d" % (c, k + 1)],
+                           "ks": 400, "kd": 2})
+        for k in range(10):
+            forces.append({"type": "behavior", "function": "angle",
+                           "particles": ["a%d.%d" % (c, k), "a%d.%d" % (c, k + 1), "a%d.%d" % (c, k + 2)],
+                           "ks": 3, "kd": 0.05})
+        forces.append({"type": "behavior", "function": "point-on-sphere", "particles": ["a%d.0" % c],
+                       "center": [round(0.3 * c, 6), 0.1], "radius": 0.1, "ks": 200, "kd": 1})
+        if c:
+            forces.append({"type": "spring", "a": "a%d.11" % (c - 1), "b": "a%d.11" % c, "ks": 5, "kd": 0.01})
+    forces.insert(0, {"type": "gravity", "g": [0, -9.81]})
+    return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.002, "steps": 40,
+            "particles": parts, "forces": forces}
+
 scenes = {"lj-grid": lj_box("grid", "lj-grid"), "lj-direct": lj_box("direct", "lj-direct"),
           "gravity-direct": galaxy("direct"), "gravity-bh": galaxy("barnes-hut"), "granular": granular(),
-          "lj-melt": lj_melt(), "gas2d": gas2d()}
+          "lj-melt": lj_melt(), "gas2d": gas2d(),
+          "cloth": cloth(), "polymer": polymer(), "arm": arm()}
 for name, sc in scenes.items():
     with open(name + ".json", "w") as fp:
         json.dump(sc, fp, separators=(",", ":"))

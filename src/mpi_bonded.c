@@ -1,0 +1,573 @@
+/* Bonded forces across the ranks of a domain decomposition (docs/mpi.md
+ * "Bonded forces"): springs and behaviour functions whose particles sit on
+ * different ranks. Compiled only with -DPSYS_MPI=ON.
+ *
+ * A term is one spring or one behaviour. Owner rule: each term is computed
+ * once, by the rank that owns its particle of lowest global index; that
+ * rank holds the term's other particles as ghosts (the ghost range covers
+ * the longest term) and sends the forces on the particles other ranks own
+ * to those ranks (the reverse exchange, after the halo exchange, before the
+ * force objects run). Every rank then adds to each particle it owns the
+ * contributions of its terms in the order the serial force loop adds them
+ * (psys__springs_order; a behaviour's particles in turn), at the place of
+ * the bonded force object among the others. The term forces are the same
+ * bits as the serial ones (the same operations), and so are the sums.
+ *
+ * The tables of the whole system (terms, and each particle's contributions
+ * in serial order) are built once, from the scene every rank loaded; the
+ * local ones at every redistribution. */
+#include "mpi_bonded.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define BOND_TAG 7302
+#define MAXQ (PSYS_BEHAVIOR_MAX_PARTICLES * 3)
+
+enum { BOND_SPRINGS, BOND_BEHAVIOR };
+
+typedef struct bond_obj {
+    int kind;
+    size_t g_index; /* its index among the whole system's force objects */
+    void *data;     /* this rank's copy: a spring set or a behaviour */
+    size_t term0;   /* its first term */
+} bond_obj;
+
+struct psys__bonds {
+    int dim;
+    size_t n; /* particles of the whole system */
+    size_t nobj;
+    bond_obj *obj;
+    /* terms of the whole system: term t has the slots end0[t]..end0[t+1]-1,
+     * slot s for particle ends[s] (a spring's lower index first) */
+    size_t nterm, nslot;
+    size_t *end0, *ends, *slot_term;
+    uint32_t *term_obj;
+    unsigned char *lead; /* the slot, within term t, of its lowest-index particle */
+    /* each particle's slots in the order the serial run adds them */
+    size_t *prow, *pslot;
+    /* this rank's terms, after psys__bonds_localize */
+    bool local_ok;
+    size_t nlt, ltcap, *lterm; /* increasing global index */
+    size_t lccap;
+    unsigned char *lcomp;      /* 1: this rank computes term u */
+    size_t l0cap, *lslot0;     /* nlt + 1: local slots of term u */
+    size_t nls, lscap, *lpart; /* local particle of each local slot */
+    size_t Ccap;
+    double *C; /* nls·dim: the force of each local slot */
+    size_t ncomp;
+    /* object o adds C[gslot[j]] to particle gpart[j], j in gptr[o]..gptr[o+1]-1 */
+    size_t *gptr, gcap, gscap, *gpart, *gslot;
+    /* reverse exchange: local slots sent to, received from each rank */
+    int size;
+    int *scount, *rcount;
+    size_t *soff, *roff;
+    size_t sscap, rscap, *sslot, *rslot;
+    size_t sbcap, rbcap;
+    double *sbuf, *rbuf;
+    MPI_Request *req;
+    MPI_Status *stat;
+};
+
+/* The local system's force object standing for bonded object `obj`. */
+typedef struct bond_force {
+    const psys__bonds *B;
+    size_t obj;
+} bond_force;
+
+bool psys__bonds_takes(const psys_force_class *c)
+{
+    return c == &psys_spring_class || c == &psys_behavior_class || c == &psys_behavior_user_class;
+}
+
+void psys__bonds_free(psys__bonds *B)
+{
+    if (!B)
+        return;
+    for (size_t o = 0; o < B->nobj; o++) {
+        if (B->obj[o].kind == BOND_SPRINGS && B->obj[o].data)
+            psys_spring_class.destroy(B->obj[o].data);
+        else
+            free(B->obj[o].data);
+    }
+    free(B->obj);
+    free(B->end0);
+    free(B->ends);
+    free(B->slot_term);
+    free(B->term_obj);
+    free(B->lead);
+    free(B->prow);
+    free(B->pslot);
+    free(B->lterm);
+    free(B->lcomp);
+    free(B->lslot0);
+    free(B->lpart);
+    free(B->C);
+    free(B->gptr);
+    free(B->gpart);
+    free(B->gslot);
+    free(B->scount);
+    free(B->rcount);
+    free(B->soff);
+    free(B->roff);
+    free(B->sslot);
+    free(B->rslot);
+    free(B->sbuf);
+    free(B->rbuf);
+    free(B->req);
+    free(B->stat);
+    free(B);
+}
+
+/* A copy of g's spring set k (muscles included). */
+static void *copy_springs(const void *src)
+{
+    void *c = psys__springs_create(NULL);
+    if (!c)
+        return NULL;
+    for (size_t k = 0; k < psys__springs_count(src); k++) {
+        size_t a, b;
+        double ks, kd, rest, amp, om, ph;
+        psys__springs_get(src, k, &a, &b, &ks, &kd, &rest);
+        if (psys__springs_add(c, a, b, ks, kd, rest) != PSYS_OK
+            || (psys__springs_muscle(src, k, &amp, &om, &ph) && psys__springs_set_muscle(c, k, amp, om, ph) != PSYS_OK)) {
+            psys_spring_class.destroy(c);
+            return NULL;
+        }
+    }
+    return c;
+}
+
+/* The terms of every bonded object, and each particle's slots in the
+ * serial order (object by object, in each as the serial loop adds them). */
+static psys_status build_tables(psys__bonds *B, const psys_system *g)
+{
+    size_t t = 0, sl = 0, oi = 0;
+    for (size_t k = 0; k < g->nforces; k++) {
+        const psys_force_class *c = g->forces[k].cls;
+        if (!psys__bonds_takes(c))
+            continue;
+        bond_obj *o = &B->obj[oi];
+        o->g_index = k;
+        o->term0 = t;
+        if (c == &psys_spring_class) {
+            o->kind = BOND_SPRINGS;
+            if (!(o->data = copy_springs(g->forces[k].data)))
+                return PSYS_ERR_NOMEM;
+            for (size_t q = 0; q < psys__springs_count(o->data); q++, t++) {
+                size_t a, b;
+                psys__springs_get(o->data, q, &a, &b, NULL, NULL, NULL);
+                B->end0[t] = sl;
+                B->ends[sl] = a < b ? a : b;
+                B->ends[sl + 1] = a < b ? b : a;
+                B->slot_term[sl] = B->slot_term[sl + 1] = t;
+                B->term_obj[t] = (uint32_t)oi;
+                B->lead[t] = 0;
+                sl += 2;
+            }
+        } else {
+            o->kind = BOND_BEHAVIOR;
+            if (!(o->data = psys__behavior_clone(g->forces[k].data)))
+                return PSYS_ERR_NOMEM;
+            int cnt = psys__behavior_count(o->data), lead = 0;
+            B->end0[t] = sl;
+            for (int i = 0; i < cnt; i++) {
+                B->ends[sl + (size_t)i] = psys__behavior_particle(o->data, i);
+                B->slot_term[sl + (size_t)i] = t;
+                if (B->ends[sl + (size_t)i] < B->ends[sl + (size_t)lead])
+                    lead = i;
+            }
+            B->term_obj[t] = (uint32_t)oi;
+            B->lead[t] = (unsigned char)lead;
+            sl += (size_t)cnt;
+            t++;
+        }
+        oi++;
+    }
+    B->end0[t] = sl;
+    /* rows: counted, then filled object by object */
+    const size_t n = B->n;
+    for (size_t s = 0; s < B->nslot; s++)
+        B->prow[B->ends[s] + 1]++;
+    for (size_t i = 0; i < n; i++)
+        B->prow[i + 1] += B->prow[i];
+    size_t *fill = psys__calloc(n + 1, sizeof *fill), *rowptr = NULL;
+    uint32_t *ent = NULL;
+    if (!fill)
+        return PSYS_ERR_NOMEM;
+    memcpy(fill, B->prow, (n + 1) * sizeof *fill);
+    psys_status st = PSYS_OK;
+    for (size_t o = 0; o < B->nobj && st == PSYS_OK; o++) {
+        const bond_obj *ob = &B->obj[o];
+        if (ob->kind == BOND_BEHAVIOR) {
+            const size_t t0 = ob->term0;
+            for (size_t s = B->end0[t0]; s < B->end0[t0 + 1]; s++)
+                B->pslot[fill[B->ends[s]]++] = s;
+            continue;
+        }
+        const size_t S = psys__springs_count(ob->data);
+        free(rowptr);
+        free(ent);
+        rowptr = psys__calloc(n + 1, sizeof *rowptr);
+        ent = psys__calloc(2 * S + 1, sizeof *ent);
+        if (!rowptr || !ent) {
+            st = PSYS_ERR_NOMEM;
+            break;
+        }
+        st = psys__springs_order(ob->data, n, rowptr, ent);
+        for (size_t i = 0; i < n && st == PSYS_OK; i++)
+            for (size_t e = rowptr[i]; e < rowptr[i + 1]; e++)
+                B->pslot[fill[i]++] = B->end0[ob->term0 + (ent[e] >> 1)] + (ent[e] & 1);
+    }
+    free(fill);
+    free(rowptr);
+    free(ent);
+    return st;
+}
+
+psys_status psys__bonds_create(const psys_system *g, psys__bonds **out)
+{
+    *out = NULL;
+    size_t nobj = 0, nterm = 0, nslot = 0;
+    for (size_t k = 0; k < g->nforces; k++) {
+        const psys_force_class *c = g->forces[k].cls;
+        if (!psys__bonds_takes(c))
+            continue;
+        nobj++;
+        if (c == &psys_spring_class) {
+            size_t S = psys__springs_count(g->forces[k].data);
+            nterm += S;
+            nslot += 2 * S;
+        } else {
+            nterm++;
+            nslot += (size_t)psys__behavior_count(g->forces[k].data);
+        }
+    }
+    if (!nobj)
+        return PSYS_OK;
+    psys__bonds *B = calloc(1, sizeof *B);
+    if (!B)
+        return PSYS_ERR_NOMEM;
+    B->dim = g->dim;
+    B->n = g->n;
+    B->nobj = nobj;
+    B->nterm = nterm;
+    B->nslot = nslot;
+    B->obj = psys__calloc(nobj, sizeof *B->obj);
+    B->end0 = psys__calloc(nterm + 1, sizeof *B->end0);
+    B->ends = psys__calloc(nslot + 1, sizeof *B->ends);
+    B->slot_term = psys__calloc(nslot + 1, sizeof *B->slot_term);
+    B->term_obj = psys__calloc(nterm + 1, sizeof *B->term_obj);
+    B->lead = psys__calloc(nterm + 1, 1);
+    B->prow = psys__calloc(g->n + 1, sizeof *B->prow);
+    B->pslot = psys__calloc(nslot + 1, sizeof *B->pslot);
+    B->gptr = psys__calloc(nobj + 1, sizeof *B->gptr);
+    if (!B->obj || !B->end0 || !B->ends || !B->slot_term || !B->term_obj || !B->lead || !B->prow || !B->pslot
+        || !B->gptr || build_tables(B, g) != PSYS_OK) {
+        psys__bonds_free(B);
+        return PSYS_ERR_NOMEM;
+    }
+    *out = B;
+    return PSYS_OK;
+}
+
+/* ---- the local force objects ---- */
+
+/* Each owned particle gets its contributions of this object, in serial order. */
+static void bond_apply(void *data, const psys_force_eval *e, double *f)
+{
+    const bond_force *bf = data;
+    const psys__bonds *B = bf->B;
+    if (!B->local_ok)
+        return;
+    const int d = e->dim;
+    for (size_t j = B->gptr[bf->obj]; j < B->gptr[bf->obj + 1]; j++) {
+        double *fi = f + B->gpart[j] * (size_t)d;
+        const double *c = B->C + B->gslot[j] * (size_t)d;
+        for (int q = 0; q < d; q++)
+            fi[q] += c[q];
+    }
+}
+
+static const psys_force_class bond_class = {"bonded-mpi", bond_apply, NULL, NULL, free};
+
+psys_status psys__bonds_add_force(psys__bonds *B, psys_system *local, size_t k)
+{
+    for (size_t o = 0; o < B->nobj; o++) {
+        if (B->obj[o].g_index != k)
+            continue;
+        bond_force *bf = malloc(sizeof *bf);
+        if (!bf)
+            return PSYS_ERR_NOMEM;
+        bf->B = B;
+        bf->obj = o;
+        return psys_system_add_force(local, &bond_class, bf); /* frees bf on failure */
+    }
+    return PSYS_ERR_INVALID;
+}
+
+/* ---- extents ---- */
+
+/* Largest extent along any axis of the particles part[s0..s1) index into x. */
+static double slots_extent(int d, const double *x, const size_t *part, size_t s0, size_t s1)
+{
+    double ext = 0;
+    for (int q = 0; q < d; q++) {
+        double lo = INFINITY, hi = -INFINITY;
+        for (size_t s = s0; s < s1; s++) {
+            double c = x[part[s] * (size_t)d + (size_t)q];
+            lo = c < lo ? c : lo;
+            hi = c > hi ? c : hi;
+        }
+        if (hi - lo > ext)
+            ext = hi - lo;
+    }
+    return ext;
+}
+
+double psys__bonds_extent_all(const psys__bonds *B, const double *x)
+{
+    double ext = 0;
+    for (size_t t = 0; t < B->nterm; t++) {
+        double e = slots_extent(B->dim, x, B->ends, B->end0[t], B->end0[t + 1]);
+        ext = e > ext || e != e ? e : ext; /* NaN stays: every particle a ghost */
+    }
+    return ext;
+}
+
+double psys__bonds_extent(const psys__bonds *B, const double *x)
+{
+    double ext = 0;
+    if (!B->local_ok)
+        return 0;
+    for (size_t u = 0; u < B->nlt; u++)
+        if (B->lcomp[u]) {
+            double e = slots_extent(B->dim, x, B->lpart, B->lslot0[u], B->lslot0[u + 1]);
+            ext = e > ext || e != e ? e : ext;
+        }
+    return ext;
+}
+
+/* ---- the local terms ---- */
+
+static int cmp_size(const void *a, const void *b)
+{
+    size_t x = *(const size_t *)a, y = *(const size_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Index of v in the increasing a[0..n), or n. */
+static size_t find(const size_t *a, size_t n, size_t v)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (a[mid] < v)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < n && a[lo] == v ? lo : n;
+}
+
+/* p grown to hold want elements of size bytes (*cap updated); NULL on failure. */
+static void *grow(void *p, size_t *cap, size_t want, size_t size)
+{
+    if (want <= *cap && p)
+        return p;
+    size_t c = *cap > 64 ? *cap : 64;
+    while (c < want)
+        c *= 2;
+    void *q = psys__realloc(p, c, size);
+    if (q)
+        *cap = c;
+    return q;
+}
+#define GROW(field, cap, want)                                                  \
+    do {                                                                        \
+        void *grown_ = grow(B->field, &(cap), (want), sizeof *B->field);        \
+        if (!grown_)                                                            \
+            return -1;                                                          \
+        B->field = grown_;                                                      \
+    } while (0)
+
+int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const unsigned char *own, const int *owner,
+                         int rank, int size)
+{
+    const size_t d = (size_t)B->dim;
+    B->local_ok = false;
+    if (B->size != size) {
+        free(B->scount);
+        free(B->rcount);
+        free(B->soff);
+        free(B->roff);
+        free(B->req);
+        free(B->stat);
+        B->size = size;
+        B->scount = psys__calloc((size_t)size, sizeof *B->scount);
+        B->rcount = psys__calloc((size_t)size, sizeof *B->rcount);
+        B->soff = psys__calloc((size_t)size + 1, sizeof *B->soff);
+        B->roff = psys__calloc((size_t)size + 1, sizeof *B->roff);
+        B->req = psys__calloc(2 * (size_t)size, sizeof *B->req);
+        B->stat = psys__calloc(2 * (size_t)size, sizeof *B->stat);
+        if (!B->scount || !B->rcount || !B->soff || !B->roff || !B->req || !B->stat) {
+            B->size = 0;
+            return -1;
+        }
+    }
+    /* the terms with an owned particle */
+    size_t cnt = 0;
+    for (size_t i = 0; i < nloc; i++)
+        if (own[i])
+            cnt += B->prow[gid[i] + 1] - B->prow[gid[i]];
+    GROW(lterm, B->ltcap, cnt + 1);
+    GROW(gpart, B->gcap, cnt + 1);
+    GROW(gslot, B->gscap, cnt + 1);
+    size_t m = 0;
+    for (size_t i = 0; i < nloc; i++)
+        if (own[i])
+            for (size_t e = B->prow[gid[i]]; e < B->prow[gid[i] + 1]; e++)
+                B->lterm[m++] = B->slot_term[B->pslot[e]];
+    qsort(B->lterm, m, sizeof *B->lterm, cmp_size);
+    size_t nlt = 0;
+    for (size_t j = 0; j < m; j++)
+        if (nlt == 0 || B->lterm[nlt - 1] != B->lterm[j])
+            B->lterm[nlt++] = B->lterm[j];
+    B->nlt = nlt;
+    /* their slots and particles here */
+    size_t nls = 0;
+    for (size_t u = 0; u < nlt; u++)
+        nls += B->end0[B->lterm[u] + 1] - B->end0[B->lterm[u]];
+    GROW(lslot0, B->l0cap, nlt + 1);
+    GROW(lcomp, B->lccap, nlt + 1);
+    GROW(lpart, B->lscap, nls + 1);
+    GROW(C, B->Ccap, (nls + 1) * d);
+    B->nls = nls;
+    size_t ls = 0;
+    B->ncomp = 0;
+    for (size_t u = 0; u < nlt; u++) {
+        const size_t t = B->lterm[u];
+        B->lslot0[u] = ls;
+        for (size_t s = B->end0[t]; s < B->end0[t + 1]; s++) {
+            size_t li = find(gid, nloc, B->ends[s]);
+            if (li == nloc)
+                return 0; /* a particle of the term is not on this rank */
+            B->lpart[ls++] = li;
+        }
+        B->lcomp[u] = owner[B->lpart[B->lslot0[u] + B->lead[t]]] == rank;
+        B->ncomp += B->lcomp[u];
+    }
+    B->lslot0[nlt] = ls;
+    /* the gather lists, object by object, each particle's slots in serial order */
+    memset(B->gptr, 0, (B->nobj + 1) * sizeof *B->gptr);
+    for (size_t i = 0; i < nloc; i++)
+        if (own[i])
+            for (size_t e = B->prow[gid[i]]; e < B->prow[gid[i] + 1]; e++)
+                B->gptr[B->term_obj[B->slot_term[B->pslot[e]]] + 1]++;
+    for (size_t o = 0; o < B->nobj; o++)
+        B->gptr[o + 1] += B->gptr[o];
+    for (size_t i = 0; i < nloc; i++)
+        if (own[i])
+            for (size_t e = B->prow[gid[i]]; e < B->prow[gid[i] + 1]; e++) {
+                const size_t s = B->pslot[e], t = B->slot_term[s], o = B->term_obj[t];
+                const size_t u = find(B->lterm, nlt, t), j = B->gptr[o]++;
+                B->gpart[j] = i;
+                B->gslot[j] = B->lslot0[u] + (s - B->end0[t]);
+            }
+    for (size_t o = B->nobj; o > 0; o--) /* the fill moved each start to the next object's */
+        B->gptr[o] = B->gptr[o - 1];
+    B->gptr[0] = 0;
+    /* the reverse exchange: both sides walk the terms in increasing global
+     * index and their slots in order */
+    for (int r = 0; r < size; r++)
+        B->scount[r] = B->rcount[r] = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1) {
+            B->soff[0] = B->roff[0] = 0;
+            for (int r = 0; r < size; r++) {
+                B->soff[r + 1] = B->soff[r] + (size_t)B->scount[r];
+                B->roff[r + 1] = B->roff[r] + (size_t)B->rcount[r];
+                B->scount[r] = B->rcount[r] = 0;
+            }
+            GROW(sslot, B->sscap, B->soff[size] + 1);
+            GROW(rslot, B->rscap, B->roff[size] + 1);
+            GROW(sbuf, B->sbcap, (B->soff[size] + 1) * d);
+            GROW(rbuf, B->rbcap, (B->roff[size] + 1) * d);
+        }
+        for (size_t u = 0; u < nlt; u++) {
+            const size_t s0 = B->lslot0[u], s1 = B->lslot0[u + 1];
+            const int by = owner[B->lpart[s0 + B->lead[B->lterm[u]]]];
+            for (size_t s = s0; s < s1; s++) {
+                const size_t p = B->lpart[s];
+                if (B->lcomp[u] && owner[p] != rank) {
+                    if (pass == 1)
+                        B->sslot[B->soff[owner[p]] + (size_t)B->scount[owner[p]]] = s;
+                    B->scount[owner[p]]++;
+                } else if (!B->lcomp[u] && own[p]) {
+                    if (pass == 1)
+                        B->rslot[B->roff[by] + (size_t)B->rcount[by]] = s;
+                    B->rcount[by]++;
+                }
+            }
+        }
+    }
+    B->local_ok = true;
+    return 1;
+}
+
+int psys__bonds_evaluate(psys__bonds *B, MPI_Comm comm, double t, const double *y, size_t nloc)
+{
+    if (!B->local_ok)
+        return -1;
+    const int d = B->dim;
+    const size_t ud = (size_t)d;
+    const double *x = y, *v = y + nloc * ud;
+    for (size_t u = 0; u < B->nlt; u++) {
+        if (!B->lcomp[u])
+            continue;
+        const size_t T = B->lterm[u], s0 = B->lslot0[u];
+        const bond_obj *o = &B->obj[B->term_obj[T]];
+        double *c = B->C + s0 * ud;
+        if (o->kind == BOND_SPRINGS) {
+            const size_t a = B->lpart[s0] * ud, b = B->lpart[s0 + 1] * ud;
+            double F[3];
+            psys__springs_force(o->data, T - o->term0, d, t, x + a, x + b, v + a, v + b, F);
+            for (int q = 0; q < d; q++) {
+                c[q] = -F[q]; /* f + (-F): the same bits as the serial f - F */
+                c[d + q] = F[q];
+            }
+        } else {
+            double xs[MAXQ], vs[MAXQ];
+            const size_t k = B->lslot0[u + 1] - s0;
+            for (size_t i = 0; i < k; i++) {
+                memcpy(xs + i * ud, x + B->lpart[s0 + i] * ud, ud * sizeof(double));
+                memcpy(vs + i * ud, v + B->lpart[s0 + i] * ud, ud * sizeof(double));
+            }
+            psys__behavior_forces(o->data, xs, vs, c);
+        }
+    }
+    int nreq = 0;
+    for (int r = 0; r < B->size; r++)
+        if (B->rcount[r] > 0
+            && MPI_Irecv(B->rbuf + B->roff[r] * ud, B->rcount[r] * d, MPI_DOUBLE, r, BOND_TAG, comm, &B->req[nreq++])
+                   != MPI_SUCCESS)
+            return -1;
+    for (int r = 0; r < B->size; r++) {
+        if (B->scount[r] == 0)
+            continue;
+        for (size_t j = B->soff[r]; j < B->soff[r + 1]; j++)
+            memcpy(B->sbuf + j * ud, B->C + B->sslot[j] * ud, ud * sizeof(double));
+        if (MPI_Isend(B->sbuf + B->soff[r] * ud, B->scount[r] * d, MPI_DOUBLE, r, BOND_TAG, comm, &B->req[nreq++])
+            != MPI_SUCCESS)
+            return -1;
+    }
+    if (nreq && MPI_Waitall(nreq, B->req, B->stat) != MPI_SUCCESS)
+        return -1;
+    for (size_t j = 0; j < B->roff[B->size]; j++)
+        memcpy(B->C + B->rslot[j] * ud, B->rbuf + j * ud, ud * sizeof(double));
+    return 0;
+}
+
+size_t psys__bonds_owned_terms(const psys__bonds *B) { return B ? B->ncomp : 0; }
+size_t psys__bonds_sent(const psys__bonds *B) { return B && B->size ? B->soff[B->size] : 0; }
