@@ -309,9 +309,7 @@ static inline void run_forces_d(const double *restrict X, const double *restrict
             len2 = len2 + l2 * l2;
             dot = dot + d2 * l2;
         }
-        double L = sqrt(len2), inv = 1.0 / L;
-        double mag = (ks[j] * (L - rest[j]) + kd[j] * dot * inv) * inv;
-        mag = len2 == 0 ? 0.0 : mag;
+        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
         F0[j] = mag * l0;
         F1[j] = mag * l1;
         if (d == 3)
@@ -553,8 +551,9 @@ psys_status psys__springs_prepare(void *set)
  * run by run, in a run the first ends before the second (any thread count).
  * Row i of (rowptr, ent) lists particle i's contributions in that order,
  * entry 2k for spring k's lower-index end (which gets -F) and 2k + 1 for its
- * higher one (+F). rowptr: np + 1 entries, ent: 2·count. */
-psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent)
+ * higher one (+F). rowptr: np + 1 entries, ent: 2·count; seq (2·count)
+ * gets each entry's place in the whole sequence of additions. */
+psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent, uint64_t *seq)
 {
     springs *s = set;
     psys_status st = springs_plan(s);
@@ -576,43 +575,21 @@ psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *
     }
     for (size_t i = 0; i < np; i++)
         rowptr[i + 1] += rowptr[i];
+    uint64_t place = 0;
     for (size_t r = 0; r < s->nruns; r++) {
         const size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r], k = s->run_k[r];
         for (int end = 0; end < 2; end++)
-            for (size_t j = 0; j < len; j++)
-                ent[rowptr[(end ? hi : lo) + j]++] = (uint32_t)(2 * k_of[k + j] + (size_t)end);
+            for (size_t j = 0; j < len; j++) {
+                const size_t e = 2 * k_of[k + j] + (size_t)end;
+                ent[rowptr[(end ? hi : lo) + j]++] = (uint32_t)e;
+                seq[e] = place++;
+            }
     }
     for (size_t i = np; i > 0; i--) /* the fill advanced each row start to the next row's */
         rowptr[i] = rowptr[i - 1];
     rowptr[0] = 0;
     free(k_of);
     return PSYS_OK;
-}
-
-/* Spring k's force F (its lower-index end gets -F, the higher +F) from the
- * ends' positions and velocities at time t: the operations of run_forces_d
- * in the same order, so the same bits. */
-void psys__springs_force(const void *set, size_t k, int d, double t, const double *xlo, const double *xhi,
-                         const double *vlo, const double *vhi, double *F)
-{
-    const springs *s = set;
-    const double rest = psys__springs_rest_at(set, k, t);
-    double l0 = xlo[0] - xhi[0], l1 = xlo[1] - xhi[1], l2 = 0;
-    double d0 = vlo[0] - vhi[0], d1 = vlo[1] - vhi[1];
-    double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
-    if (d == 3) {
-        l2 = xlo[2] - xhi[2];
-        double d2 = vlo[2] - vhi[2];
-        len2 = len2 + l2 * l2;
-        dot = dot + d2 * l2;
-    }
-    double L = sqrt(len2), inv = 1.0 / L;
-    double mag = (s->ks[k] * (L - rest) + s->kd[k] * dot * inv) * inv;
-    mag = len2 == 0 ? 0.0 : mag;
-    F[0] = mag * l0;
-    F[1] = mag * l1;
-    if (d == 3)
-        F[2] = mag * l2;
 }
 
 /* First particle of thread t's share of np particles among T. */

@@ -4,6 +4,7 @@
 
 #include "psys/psys.h"
 
+#include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
 
@@ -202,6 +203,18 @@ double psys__drag_kd(const void *data);
 void psys__pair_invalidate(void *data);
 
 /* ---- spring set internals (force_spring.c) ---- */
+/** The damped spring law's magnitude over |l|: with len2 = |l|², dot = l̇·l,
+ *  [ks(|l| - r) + kd dot/|l|] / |l|, and 0 for a spring of zero length (no
+ *  direction, no force); the force on the first end is -mag·l. The one
+ *  expression of every spring loop (serial and across MPI ranks), so they
+ *  give the same bits. */
+static inline double psys__spring_mag(double ks, double kd, double rest, double len2, double dot)
+{
+    double L = sqrt(len2), inv = 1.0 / L;
+    double mag = (ks * (L - rest) + kd * dot * inv) * inv;
+    return len2 == 0 ? 0.0 : mag;
+}
+
 /** Create an empty spring set of the system owner (whose thread count it uses). */
 void *psys__springs_create(const psys_system *owner);
 /** Append one spring. */
@@ -225,12 +238,9 @@ psys_status psys__springs_prepare(void *set);
 /** The order in which each particle's force receives its spring forces
  *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists
  *  particle i's contributions, 2k for spring k's lower-index end (-F) and
- *  2k + 1 for its higher one (+F). */
-psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent);
-/** Spring k's force F on its higher-index end (-F on the lower) at time t,
- *  bit-identical to the one the force loop computes. */
-void psys__springs_force(const void *set, size_t k, int d, double t, const double *xlo, const double *xhi,
-                         const double *vlo, const double *vhi, double *F);
+ *  2k + 1 for its higher one (+F); seq[e] (2·count) is entry e's place in
+ *  the loop's whole sequence of additions. */
+psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent, uint64_t *seq);
 /** Copy of behaviour force data (force_behavior.c; free() frees it). */
 void *psys__behavior_clone(const void *data);
 /** A behaviour's particles (count, then each index). */

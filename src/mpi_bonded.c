@@ -13,6 +13,11 @@
  * the bonded force object among the others. The term forces are the same
  * bits as the serial ones (the same operations), and so are the sums.
  *
+ * Speed: the springs a rank computes are grouped into runs of consecutive
+ * local particles at both ends (a cloth's rows), so their loop vectorises
+ * with contiguous loads; the additions follow the serial loop's sequence,
+ * so they walk the force array in long runs too.
+ *
  * The tables of the whole system (terms, and each particle's contributions
  * in serial order) are built once, from the scene every rank loaded; the
  * local ones at every redistribution. */
@@ -45,8 +50,10 @@ struct psys__bonds {
     size_t *end0, *ends, *slot_term;
     uint32_t *term_obj;
     unsigned char *lead; /* the slot, within term t, of its lowest-index particle */
-    /* each particle's slots in the order the serial run adds them */
+    /* each particle's slots in the order the serial run adds them, and each
+     * slot's place in its object's whole sequence of additions */
     size_t *prow, *pslot;
+    uint64_t *seqpos;
     /* this rank's terms, after psys__bonds_localize */
     bool local_ok;
     size_t nlt, ltcap, *lterm; /* increasing global index */
@@ -57,8 +64,23 @@ struct psys__bonds {
     size_t Ccap;
     double *C; /* nls·dim: the force of each local slot */
     size_t ncomp;
+    /* the springs this rank computes, in term order: ends (local), first
+     * local slot, parameters; muscles' rest lengths updated per evaluation */
+    size_t nsp, spcap;
+    uint32_t *sp_a, *sp_b; /* spring j's slots are 2j and 2j + 1 */
+    /* runs of springs whose ends are consecutive particles here: springs
+     * j0 + i join a0 + i and b0 + i, i < len (contiguous loads, so the loop
+     * vectorises without gathers) */
+    size_t nrun, runcap;
+    uint32_t *run_j, *run_a, *run_b, *run_len;
+    double *sp_ks, *sp_kd, *sp_rest;
+    size_t nmus, muscap, *mus_j, *mus_k, *mus_o;
+    size_t nbh, bhcap, *bh_u; /* the behaviours it computes (local terms) */
     /* object o adds C[gslot[j]] to particle gpart[j], j in gptr[o]..gptr[o+1]-1 */
-    size_t *gptr, gcap, gscap, *gpart, *gslot;
+    size_t *gptr, gcap, gscap;
+    uint32_t *gpart, *gslot;
+    struct gather_entry *gent; /* scratch for sorting them */
+    size_t gecap;
     /* reverse exchange: local slots sent to, received from each rank */
     int size;
     int *scount, *rcount;
@@ -68,6 +90,12 @@ struct psys__bonds {
     double *sbuf, *rbuf;
     MPI_Request *req;
     MPI_Status *stat;
+};
+
+/* One addition of the gather lists, with its place in the serial sequence. */
+struct gather_entry {
+    uint64_t obj, seq;
+    size_t part, slot;
 };
 
 /* The local system's force object standing for bonded object `obj`. */
@@ -99,10 +127,25 @@ void psys__bonds_free(psys__bonds *B)
     free(B->lead);
     free(B->prow);
     free(B->pslot);
+    free(B->seqpos);
+    free(B->gent);
     free(B->lterm);
     free(B->lcomp);
     free(B->lslot0);
     free(B->lpart);
+    free(B->sp_a);
+    free(B->sp_b);
+    free(B->sp_ks);
+    free(B->sp_kd);
+    free(B->sp_rest);
+    free(B->run_j);
+    free(B->run_a);
+    free(B->run_b);
+    free(B->run_len);
+    free(B->mus_j);
+    free(B->mus_k);
+    free(B->mus_o);
+    free(B->bh_u);
     free(B->C);
     free(B->gptr);
     free(B->gpart);
@@ -194,6 +237,7 @@ static psys_status build_tables(psys__bonds *B, const psys_system *g)
         B->prow[i + 1] += B->prow[i];
     size_t *fill = psys__calloc(n + 1, sizeof *fill), *rowptr = NULL;
     uint32_t *ent = NULL;
+    uint64_t *seq = NULL;
     if (!fill)
         return PSYS_ERR_NOMEM;
     memcpy(fill, B->prow, (n + 1) * sizeof *fill);
@@ -202,20 +246,26 @@ static psys_status build_tables(psys__bonds *B, const psys_system *g)
         const bond_obj *ob = &B->obj[o];
         if (ob->kind == BOND_BEHAVIOR) {
             const size_t t0 = ob->term0;
-            for (size_t s = B->end0[t0]; s < B->end0[t0 + 1]; s++)
+            for (size_t s = B->end0[t0]; s < B->end0[t0 + 1]; s++) {
                 B->pslot[fill[B->ends[s]]++] = s;
+                B->seqpos[s] = s - B->end0[t0];
+            }
             continue;
         }
         const size_t S = psys__springs_count(ob->data);
         free(rowptr);
         free(ent);
+        free(seq);
         rowptr = psys__calloc(n + 1, sizeof *rowptr);
         ent = psys__calloc(2 * S + 1, sizeof *ent);
-        if (!rowptr || !ent) {
+        seq = psys__calloc(2 * S + 1, sizeof *seq);
+        if (!rowptr || !ent || !seq) {
             st = PSYS_ERR_NOMEM;
             break;
         }
-        st = psys__springs_order(ob->data, n, rowptr, ent);
+        st = psys__springs_order(ob->data, n, rowptr, ent, seq);
+        for (size_t e = 0; e < 2 * S && st == PSYS_OK; e++)
+            B->seqpos[B->end0[ob->term0 + (e >> 1)] + (e & 1)] = seq[e];
         for (size_t i = 0; i < n && st == PSYS_OK; i++)
             for (size_t e = rowptr[i]; e < rowptr[i + 1]; e++)
                 B->pslot[fill[i]++] = B->end0[ob->term0 + (ent[e] >> 1)] + (ent[e] & 1);
@@ -223,6 +273,7 @@ static psys_status build_tables(psys__bonds *B, const psys_system *g)
     free(fill);
     free(rowptr);
     free(ent);
+    free(seq);
     return st;
 }
 
@@ -262,9 +313,10 @@ psys_status psys__bonds_create(const psys_system *g, psys__bonds **out)
     B->lead = psys__calloc(nterm + 1, 1);
     B->prow = psys__calloc(g->n + 1, sizeof *B->prow);
     B->pslot = psys__calloc(nslot + 1, sizeof *B->pslot);
+    B->seqpos = psys__calloc(nslot + 1, sizeof *B->seqpos);
     B->gptr = psys__calloc(nobj + 1, sizeof *B->gptr);
     if (!B->obj || !B->end0 || !B->ends || !B->slot_term || !B->term_obj || !B->lead || !B->prow || !B->pslot
-        || !B->gptr || build_tables(B, g) != PSYS_OK) {
+        || !B->seqpos || !B->gptr || build_tables(B, g) != PSYS_OK) {
         psys__bonds_free(B);
         return PSYS_ERR_NOMEM;
     }
@@ -275,19 +327,29 @@ psys_status psys__bonds_create(const psys_system *g, psys__bonds **out)
 /* ---- the local force objects ---- */
 
 /* Each owned particle gets its contributions of this object, in serial order. */
+static inline void bond_apply_d(const psys__bonds *B, size_t obj, double *restrict f, const int d)
+{
+    const uint32_t *restrict part = B->gpart, *restrict slot = B->gslot;
+    const double *restrict C = B->C;
+    for (size_t j = B->gptr[obj]; j < B->gptr[obj + 1]; j++) {
+        double *fi = f + (size_t)part[j] * (size_t)d;
+        const double *c = C + (size_t)slot[j] * (size_t)d;
+        fi[0] += c[0];
+        fi[1] += c[1];
+        if (d == 3)
+            fi[2] += c[2];
+    }
+}
+
 static void bond_apply(void *data, const psys_force_eval *e, double *f)
 {
     const bond_force *bf = data;
-    const psys__bonds *B = bf->B;
-    if (!B->local_ok)
+    if (!bf->B->local_ok)
         return;
-    const int d = e->dim;
-    for (size_t j = B->gptr[bf->obj]; j < B->gptr[bf->obj + 1]; j++) {
-        double *fi = f + B->gpart[j] * (size_t)d;
-        const double *c = B->C + B->gslot[j] * (size_t)d;
-        for (int q = 0; q < d; q++)
-            fi[q] += c[q];
-    }
+    if (e->dim == 2)
+        bond_apply_d(bf->B, bf->obj, f, 2);
+    else
+        bond_apply_d(bf->B, bf->obj, f, 3);
 }
 
 static const psys_force_class bond_class = {"bonded-mpi", bond_apply, NULL, NULL, free};
@@ -306,6 +368,9 @@ psys_status psys__bonds_add_force(psys__bonds *B, psys_system *local, size_t k)
     }
     return PSYS_ERR_INVALID;
 }
+
+/* Particles of term t. */
+static size_t arity(const psys__bonds *B, size_t t) { return B->end0[t + 1] - B->end0[t]; }
 
 /* ---- extents ---- */
 
@@ -343,7 +408,7 @@ double psys__bonds_extent(const psys__bonds *B, const double *x)
         return 0;
     for (size_t u = 0; u < B->nlt; u++)
         if (B->lcomp[u]) {
-            double e = slots_extent(B->dim, x, B->lpart, B->lslot0[u], B->lslot0[u + 1]);
+            double e = slots_extent(B->dim, x, B->lpart, B->lslot0[u], B->lslot0[u] + arity(B, B->lterm[u]));
             ext = e > ext || e != e ? e : ext;
         }
     return ext;
@@ -355,6 +420,14 @@ static int cmp_size(const void *a, const void *b)
 {
     size_t x = *(const size_t *)a, y = *(const size_t *)b;
     return x < y ? -1 : x > y;
+}
+
+static int by_sequence(const void *a, const void *b)
+{
+    const struct gather_entry *x = a, *y = b;
+    if (x->obj != y->obj)
+        return x->obj < y->obj ? -1 : 1;
+    return (x->seq > y->seq) - (x->seq < y->seq);
 }
 
 /* Index of v in the increasing a[0..n), or n. */
@@ -397,6 +470,8 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
 {
     const size_t d = (size_t)B->dim;
     B->local_ok = false;
+    if (nloc > UINT32_MAX || B->nslot > UINT32_MAX)
+        return -1; /* the loops' indices are 32-bit */
     if (B->size != size) {
         free(B->scount);
         free(B->rcount);
@@ -444,40 +519,117 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
     GROW(lpart, B->lscap, nls + 1);
     GROW(C, B->Ccap, (nls + 1) * d);
     B->nls = nls;
-    size_t ls = 0;
+    /* which terms this rank computes; then their slots: the springs it
+     * computes first (spring j at slots 2j, 2j + 1, so the spring loop
+     * writes C in order), then the behaviours it computes, then the rest */
     B->ncomp = 0;
     for (size_t u = 0; u < nlt; u++) {
-        const size_t t = B->lterm[u];
-        B->lslot0[u] = ls;
-        for (size_t s = B->end0[t]; s < B->end0[t + 1]; s++) {
-            size_t li = find(gid, nloc, B->ends[s]);
-            if (li == nloc)
-                return 0; /* a particle of the term is not on this rank */
-            B->lpart[ls++] = li;
-        }
-        B->lcomp[u] = owner[B->lpart[B->lslot0[u] + B->lead[t]]] == rank;
+        const size_t t = B->lterm[u], li = find(gid, nloc, B->ends[B->end0[t] + B->lead[t]]);
+        if (li == nloc)
+            return 0; /* a particle of the term is not on this rank */
+        B->lcomp[u] = owner[li] == rank;
         B->ncomp += B->lcomp[u];
     }
-    B->lslot0[nlt] = ls;
-    /* the gather lists, object by object, each particle's slots in serial order */
-    memset(B->gptr, 0, (B->nobj + 1) * sizeof *B->gptr);
-    for (size_t i = 0; i < nloc; i++)
-        if (own[i])
-            for (size_t e = B->prow[gid[i]]; e < B->prow[gid[i] + 1]; e++)
-                B->gptr[B->term_obj[B->slot_term[B->pslot[e]]] + 1]++;
-    for (size_t o = 0; o < B->nobj; o++)
-        B->gptr[o + 1] += B->gptr[o];
+    size_t ls = 0;
+    for (int group = 0; group < 3; group++)
+        for (size_t u = 0; u < nlt; u++) {
+            const size_t t = B->lterm[u];
+            const bool spring = B->obj[B->term_obj[t]].kind == BOND_SPRINGS;
+            if (group != (!B->lcomp[u] ? 2 : spring ? 0 : 1))
+                continue;
+            B->lslot0[u] = ls;
+            for (size_t s = B->end0[t]; s < B->end0[t + 1]; s++) {
+                size_t li = find(gid, nloc, B->ends[s]);
+                if (li == nloc)
+                    return 0;
+                B->lpart[ls++] = li;
+            }
+        }
+    /* the terms this rank computes, as flat lists */
+    size_t cs = 0, cb = 0, cm = 0;
+    for (size_t u = 0; u < nlt; u++)
+        if (B->lcomp[u]) {
+            const bond_obj *o = &B->obj[B->term_obj[B->lterm[u]]];
+            if (o->kind == BOND_BEHAVIOR)
+                cb++;
+            else {
+                cs++;
+                cm += psys__springs_muscle(o->data, B->lterm[u] - o->term0, NULL, NULL, NULL);
+            }
+        }
+    size_t c2 = B->spcap, c4 = B->spcap, c5 = B->spcap, c6 = B->spcap;
+    GROW(sp_a, B->spcap, cs + 1);
+    GROW(sp_b, c2, cs + 1);
+    GROW(sp_ks, c4, cs + 1);
+    GROW(sp_kd, c5, cs + 1);
+    GROW(sp_rest, c6, cs + 1);
+    size_t m2 = B->muscap, m3 = B->muscap;
+    GROW(mus_j, B->muscap, cm + 1);
+    GROW(mus_k, m2, cm + 1);
+    GROW(mus_o, m3, cm + 1);
+    GROW(bh_u, B->bhcap, cb + 1);
+    B->nsp = B->nmus = B->nbh = 0;
+    for (size_t u = 0; u < nlt; u++) {
+        if (!B->lcomp[u])
+            continue;
+        const size_t t = B->lterm[u], s0 = B->lslot0[u];
+        const bond_obj *o = &B->obj[B->term_obj[t]];
+        if (o->kind == BOND_BEHAVIOR) {
+            B->bh_u[B->nbh++] = u;
+            continue;
+        }
+        const size_t k = t - o->term0, j = B->nsp++;
+        B->sp_a[j] = (uint32_t)B->lpart[s0];
+        B->sp_b[j] = (uint32_t)B->lpart[s0 + 1];
+        psys__springs_get(o->data, k, NULL, NULL, &B->sp_ks[j], &B->sp_kd[j], &B->sp_rest[j]);
+        if (psys__springs_muscle(o->data, k, NULL, NULL, NULL)) {
+            B->mus_j[B->nmus] = j;
+            B->mus_k[B->nmus] = k;
+            B->mus_o[B->nmus++] = B->term_obj[t];
+        }
+    }
+    size_t nr = 0;
+    for (size_t j = 0; j < B->nsp; j++)
+        nr += j == 0 || B->sp_a[j] != B->sp_a[j - 1] + 1 || B->sp_b[j] != B->sp_b[j - 1] + 1;
+    size_t r2 = B->runcap, r3 = B->runcap, r4 = B->runcap;
+    GROW(run_j, B->runcap, nr + 1);
+    GROW(run_a, r2, nr + 1);
+    GROW(run_b, r3, nr + 1);
+    GROW(run_len, r4, nr + 1);
+    B->nrun = 0;
+    for (size_t j = 0; j < B->nsp; j++) {
+        if (j == 0 || B->sp_a[j] != B->sp_a[j - 1] + 1 || B->sp_b[j] != B->sp_b[j - 1] + 1) {
+            B->run_j[B->nrun] = (uint32_t)j;
+            B->run_a[B->nrun] = B->sp_a[j];
+            B->run_b[B->nrun] = B->sp_b[j];
+            B->run_len[B->nrun++] = 0;
+        }
+        B->run_len[B->nrun - 1]++;
+    }
+    /* the gather lists, object by object, in the serial loop's sequence of
+     * additions (so each particle gets its contributions in serial order,
+     * and the lists walk C and f in long runs, as the serial loop does) */
+    GROW(gent, B->gecap, cnt + 1);
+    size_t ng = 0;
     for (size_t i = 0; i < nloc; i++)
         if (own[i])
             for (size_t e = B->prow[gid[i]]; e < B->prow[gid[i] + 1]; e++) {
-                const size_t s = B->pslot[e], t = B->slot_term[s], o = B->term_obj[t];
-                const size_t u = find(B->lterm, nlt, t), j = B->gptr[o]++;
-                B->gpart[j] = i;
-                B->gslot[j] = B->lslot0[u] + (s - B->end0[t]);
+                const size_t s = B->pslot[e], t = B->slot_term[s], u = find(B->lterm, nlt, t);
+                struct gather_entry *g = &B->gent[ng++];
+                g->obj = B->term_obj[t];
+                g->seq = B->seqpos[s];
+                g->part = i;
+                g->slot = B->lslot0[u] + (s - B->end0[t]);
             }
-    for (size_t o = B->nobj; o > 0; o--) /* the fill moved each start to the next object's */
-        B->gptr[o] = B->gptr[o - 1];
-    B->gptr[0] = 0;
+    qsort(B->gent, ng, sizeof *B->gent, by_sequence);
+    memset(B->gptr, 0, (B->nobj + 1) * sizeof *B->gptr);
+    for (size_t j = 0; j < ng; j++) {
+        B->gptr[B->gent[j].obj + 1]++;
+        B->gpart[j] = (uint32_t)B->gent[j].part;
+        B->gslot[j] = (uint32_t)B->gent[j].slot;
+    }
+    for (size_t o = 0; o < B->nobj; o++)
+        B->gptr[o + 1] += B->gptr[o];
     /* the reverse exchange: both sides walk the terms in increasing global
      * index and their slots in order */
     for (int r = 0; r < size; r++)
@@ -496,7 +648,7 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
             GROW(rbuf, B->rbcap, (B->roff[size] + 1) * d);
         }
         for (size_t u = 0; u < nlt; u++) {
-            const size_t s0 = B->lslot0[u], s1 = B->lslot0[u + 1];
+            const size_t s0 = B->lslot0[u], s1 = s0 + arity(B, B->lterm[u]);
             const int by = owner[B->lpart[s0 + B->lead[B->lterm[u]]]];
             for (size_t s = s0; s < s1; s++) {
                 const size_t p = B->lpart[s];
@@ -516,6 +668,54 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
     return 1;
 }
 
+/* The springs this rank computes into C, run by run: -F on the first
+ * (lower-index) end's slot, F on the second, F = mag·l with l = x_a - x_b
+ * (the serial loop's operations in its order, psys__spring_mag). */
+static inline void springs_batch_d(const psys__bonds *B, const double *restrict x, const double *restrict v,
+                                   double *restrict C, const int d)
+{
+    for (size_t r = 0; r < B->nrun; r++) {
+        const size_t j0 = B->run_j[r], n = B->run_len[r];
+        const double *restrict xa = x + (size_t)B->run_a[r] * (size_t)d, *restrict xb = x + (size_t)B->run_b[r] * (size_t)d;
+        const double *restrict va = v + (size_t)B->run_a[r] * (size_t)d, *restrict vb = v + (size_t)B->run_b[r] * (size_t)d;
+        const double *restrict ks = B->sp_ks + j0, *restrict kd = B->sp_kd + j0, *restrict rest = B->sp_rest + j0;
+        double *restrict c = C + 2 * j0 * (size_t)d;
+        for (size_t i = 0; i < n; i++) {
+            const size_t p = i * (size_t)d;
+            double l0 = xa[p] - xb[p], l1 = xa[p + 1] - xb[p + 1], l2 = 0;
+            double d0 = va[p] - vb[p], d1 = va[p + 1] - vb[p + 1];
+            double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
+            if (d == 3) {
+                l2 = xa[p + 2] - xb[p + 2];
+                double d2 = va[p + 2] - vb[p + 2];
+                len2 = len2 + l2 * l2;
+                dot = dot + d2 * l2;
+            }
+            double mag = psys__spring_mag(ks[i], kd[i], rest[i], len2, dot);
+            double *ci = c + 2 * p; /* f + (-F): the same bits as the serial f - F */
+            ci[0] = -(mag * l0);
+            ci[1] = -(mag * l1);
+            ci[d] = mag * l0;
+            ci[d + 1] = mag * l1;
+            if (d == 3) {
+                ci[2] = -(mag * l2);
+                ci[5] = mag * l2;
+            }
+        }
+    }
+}
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+__attribute__((target_clones("avx512f", "avx2", "default")))
+#endif
+static void springs_batch(const psys__bonds *B, const double *x, const double *v, double *C)
+{
+    if (B->dim == 2)
+        springs_batch_d(B, x, v, C, 2);
+    else
+        springs_batch_d(B, x, v, C, 3);
+}
+
 int psys__bonds_evaluate(psys__bonds *B, MPI_Comm comm, double t, const double *y, size_t nloc)
 {
     if (!B->local_ok)
@@ -523,29 +723,19 @@ int psys__bonds_evaluate(psys__bonds *B, MPI_Comm comm, double t, const double *
     const int d = B->dim;
     const size_t ud = (size_t)d;
     const double *x = y, *v = y + nloc * ud;
-    for (size_t u = 0; u < B->nlt; u++) {
-        if (!B->lcomp[u])
-            continue;
-        const size_t T = B->lterm[u], s0 = B->lslot0[u];
+    for (size_t m = 0; m < B->nmus; m++)
+        B->sp_rest[B->mus_j[m]] = psys__springs_rest_at(B->obj[B->mus_o[m]].data, B->mus_k[m], t);
+    springs_batch(B, x, v, B->C);
+    for (size_t q = 0; q < B->nbh; q++) {
+        const size_t u = B->bh_u[q], T = B->lterm[u], s0 = B->lslot0[u];
         const bond_obj *o = &B->obj[B->term_obj[T]];
-        double *c = B->C + s0 * ud;
-        if (o->kind == BOND_SPRINGS) {
-            const size_t a = B->lpart[s0] * ud, b = B->lpart[s0 + 1] * ud;
-            double F[3];
-            psys__springs_force(o->data, T - o->term0, d, t, x + a, x + b, v + a, v + b, F);
-            for (int q = 0; q < d; q++) {
-                c[q] = -F[q]; /* f + (-F): the same bits as the serial f - F */
-                c[d + q] = F[q];
-            }
-        } else {
-            double xs[MAXQ], vs[MAXQ];
-            const size_t k = B->lslot0[u + 1] - s0;
-            for (size_t i = 0; i < k; i++) {
-                memcpy(xs + i * ud, x + B->lpart[s0 + i] * ud, ud * sizeof(double));
-                memcpy(vs + i * ud, v + B->lpart[s0 + i] * ud, ud * sizeof(double));
-            }
-            psys__behavior_forces(o->data, xs, vs, c);
+        double xs[MAXQ], vs[MAXQ];
+        const size_t k = arity(B, T);
+        for (size_t i = 0; i < k; i++) {
+            memcpy(xs + i * ud, x + B->lpart[s0 + i] * ud, ud * sizeof(double));
+            memcpy(vs + i * ud, v + B->lpart[s0 + i] * ud, ud * sizeof(double));
         }
+        psys__behavior_forces(o->data, xs, vs, B->C + s0 * ud);
     }
     int nreq = 0;
     for (int r = 0; r < B->size; r++)

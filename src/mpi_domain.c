@@ -85,6 +85,11 @@ struct psys__domain {
     psys__bonds *bonds;/* springs and behaviours (mpi_bonded.c), NULL = none */
     double bond_ext; /* the longest bonded term along any axis at the last redistribution */
     bool all_ghosts; /* every particle a ghost from now on */
+    /* controlled particles: every controller of the system (by increasing
+     * particle), and room for the local system's, which are copies of those
+     * of its owned particles (the keyframes stay here) */
+    psys__controller *gctrl;
+    size_t ngctrl, ctrl_cap;
     double skin;     /* displacements of two particles may add up to less than this */
     int *bin_part[3];      /* level L: lev_cells[L]·parts·DOMAIN_BINS, the part each bin goes to */
     uint64_t *hist;        /* size·DOMAIN_BINS (the largest level's histogram) */
@@ -133,7 +138,12 @@ void psys__domain_free(psys__domain *D)
     if (!D)
         return;
     psys_solver_destroy(D->solver);
+    if (D->local)
+        D->local->nctrl = 0; /* its controllers' keyframes are gctrl's */
     psys_system_destroy(D->local);
+    for (size_t k = 0; k < D->ngctrl; k++)
+        psys__controller_free(&D->gctrl[k]);
+    free(D->gctrl);
     psys__bonds_free(D->bonds);
     if (D->comm != MPI_COMM_NULL)
         MPI_Comm_free(&D->comm);
@@ -548,6 +558,12 @@ static psys_status dd_derivative(void *ctx, double t, const double *y, double *y
     return PSYS_OK;
 }
 
+static void dd_project(void *ctx, double t, double *y)
+{
+    psys__domain *D = ctx;
+    D->inner.project(D->inner.ctx, t, y); /* the owned controlled particles; ghosts come with the halo */
+}
+
 static void dd_reduce_sum(void *ctx, double *values, int count)
 {
     psys__domain *D = ctx;
@@ -572,6 +588,8 @@ static int make_solver(psys__domain *D)
     o.set_time = dd_set_time;
     o.derivative = dd_derivative;
     o.reduce_sum = dd_reduce_sum;
+    if (D->inner.project)
+        o.project = dd_project;
     o.block = D->dim;
     if (D->solver) /* after a migration: the same solver, its settings and next step size */
         return psys__solver_rebind(D->solver, &o) == PSYS_OK ? 0 : -1;
@@ -711,6 +729,28 @@ static int redistribute_once(psys__domain *D)
         s->ncharge = m;
     D->nloc = m;
     s->own_mark = D->own;
+    /* the controllers of the owned particles */
+    size_t nc = 0;
+    for (size_t t = 0; t < m && D->ngctrl; t++)
+        nc += D->own[t] && (s->flags[t] & PSYS_PARTICLE_CONTROLLED);
+    s->nctrl = 0;
+    const int cok = nc == 0 || GROW_BUF(s->ctrl, D->ctrl_cap, nc);
+    for (size_t t = 0; t < m && cok && D->ngctrl; t++) {
+        if (!D->own[t] || !(s->flags[t] & PSYS_PARTICLE_CONTROLLED))
+            continue;
+        size_t lo = 0, hi = D->ngctrl; /* gctrl by increasing particle */
+        while (lo < hi) {
+            size_t mid = lo + (hi - lo) / 2;
+            if (D->gctrl[mid].particle < D->gid[t])
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        if (lo < D->ngctrl && D->gctrl[lo].particle == D->gid[t]) {
+            s->ctrl[s->nctrl] = D->gctrl[lo];
+            s->ctrl[s->nctrl++].particle = t;
+        }
+    }
     for (size_t k = 0; k < s->nforces; k++)
         if (s->forces[k].cls == &psys_pair_class)
             psys__pair_invalidate(s->forces[k].data);
@@ -734,7 +774,7 @@ static int redistribute_once(psys__domain *D)
             D->rcount[D->lowner[i]]++;
         }
     }
-    ok = GROW_BUF(D->sidx, D->scap, ns ? ns : 1)
+    ok = cok && GROW_BUF(D->sidx, D->scap, ns ? ns : 1)
          && GROW_BUF(D->sbuf, D->sbuf_cap, (ns ? ns : 1) * 2 * (size_t)d)
          && GROW_BUF(D->rbuf, D->rbuf_cap, (m - D->nown + 1) * 2 * (size_t)d);
     if (ok) {
@@ -905,13 +945,17 @@ const char *psys__domain_last_error(const psys__domain *D) { return D->err.messa
 
 /* ---- creation ---- */
 
+static int by_particle(const void *a, const void *b)
+{
+    size_t x = ((const psys__controller *)a)->particle, y = ((const psys__controller *)b)->particle;
+    return x < y ? -1 : x > y;
+}
+
 /* Why the scene cannot be decomposed (NULL: it can); range and skin of its pair forces. */
 static const char *unsupported(const psys_system *g, const char *integrator, double *delta, double *skin)
 {
     if (strcmp(integrator, "implicit-euler") == 0)
         return "implicit-euler solves for the whole system at once";
-    if (g->nctrl)
-        return "the scene has controlled particles";
     if (g->nplanes)
         return "the scene has planes (contact events couple every particle)";
     double range = -1, sk = 0;
@@ -994,6 +1038,21 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
              && D->req && D->stat && D->gath && D->mcount && D->mdispl && D->rmcount && D->rmdispl && D->local;
     /* the local system: the same box, threads and force objects in the same order */
     psys_system *s = D->local;
+    if (ok && g->nctrl) { /* every controller, by increasing particle (keyframes copied) */
+        ok = (D->gctrl = psys__calloc(g->nctrl, sizeof *D->gctrl)) != NULL;
+        if (ok) {
+            memcpy(D->gctrl, g->ctrl, g->nctrl * sizeof *D->gctrl);
+            qsort(D->gctrl, g->nctrl, sizeof *D->gctrl, by_particle);
+            for (size_t k = 0; k < g->nctrl; k++) {
+                const double *src = D->gctrl[k].frames;
+                D->gctrl[k].frames = NULL;
+                D->ngctrl++;
+                size_t len = D->gctrl[k].nframes * (size_t)(1 + d);
+                if (len && ok && (ok = (D->gctrl[k].frames = psys__calloc(len, sizeof(double))) != NULL))
+                    memcpy(D->gctrl[k].frames, src, len * sizeof(double));
+            }
+        }
+    }
     if (ok) {
         ok = psys__bonds_create(g, &D->bonds) == PSYS_OK;
         if (D->bonds)

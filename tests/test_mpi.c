@@ -141,8 +141,9 @@ static void domain_case(const char *path, const char *integrator, double tol)
 /* Bonded forces across ranks (springs, behaviours): each term computed by
  * exactly one rank, some forces sent between ranks, and the trajectory the
  * serial run's to the bit, on a scene where nothing migrates (cloth), one
- * with migrations (polymer: bead-spring chains in a Lennard-Jones droplet)
- * and one of behaviour functions (arm). */
+ * with migrations (polymer: bead-spring chains in a Lennard-Jones droplet),
+ * one of behaviour functions (arm) and one of ropes hanging from controlled
+ * particles, migrating (crank). */
 static void bonded_case(const char *path, const char *integrator, size_t min_redis)
 {
     int rank, size;
@@ -260,10 +261,11 @@ int main(int argc, char **argv)
         domain_case(argv[1], "rk4", 0);
         domain_case(argv[1], "rk45", 1e-9);
     }
-    if (argc > 4) { /* cloth, polymer, arm */
+    if (argc > 5) { /* cloth, polymer, arm, crank */
         bonded_case(argv[2], "rk4", 0);
         bonded_case(argv[3], "verlet", 2);
         bonded_case(argv[4], "midpoint", 0);
+        bonded_case(argv[5], "rk4", 2);
     }
     domain_refused();
     int fails = check_failures, all = 0;

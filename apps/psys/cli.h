@@ -39,6 +39,8 @@ void cli_stability_warning(const char *source, psys_scene *scene, int quiet);
 
 /** Parse a strictly positive finite double; returns -1 if s is not one. */
 int parse_positive(const char *s, double *out);
+/* Read all of fp into a NUL-terminated buffer, its length into *len; NULL on failure. */
+char *cli_read_all(FILE *fp, size_t *len);
 /** Parse a non-negative finite double. */
 int parse_nonneg(const char *s, double *out);
 /** Parse an integer in [min, max]. */

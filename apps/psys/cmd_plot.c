@@ -17,36 +17,6 @@ typedef struct plot_opts {
     const char *file, *x, *y, *out, *particle, *size, *title;
 } plot_opts;
 
-/* Read all of fp into a NUL-terminated buffer. */
-static char *slurp(FILE *fp, size_t *len)
-{
-    size_t cap = 1 << 16, n = 0;
-    char *buf = malloc(cap);
-    if (!buf)
-        return NULL;
-    for (;;) {
-        if (n + 1 >= cap) {
-            char *nb = cap > ((size_t)-1) / 2 ? NULL : realloc(buf, cap * 2);
-            if (!nb) {
-                free(buf);
-                return NULL;
-            }
-            buf = nb;
-            cap *= 2;
-        }
-        size_t k = fread(buf + n, 1, cap - n - 1, fp);
-        n += k;
-        if (k == 0)
-            break;
-    }
-    if (ferror(fp)) {
-        free(buf);
-        return NULL;
-    }
-    buf[n] = '\0';
-    *len = n;
-    return buf;
-}
 
 /* Split line (modified in place) at commas into at most cap fields. */
 static int split(char *line, char **fields, int cap)
@@ -144,7 +114,7 @@ int cmd_plot(int argc, char **argv)
         return EXIT_BAD_INPUT;
     }
     size_t len;
-    char *text = slurp(fp, &len);
+    char *text = cli_read_all(fp, &len);
     if (fp != stdin)
         fclose(fp);
     if (!text) {

@@ -596,15 +596,42 @@ static psys_scene *load_for_run(const run_opts *o)
 }
 
 #ifdef PSYS_MPI
-/* Rank 0's scene (NULL: it failed) to every rank, as the exact scene text a
- * checkpoint holds (saving and loading is exact, DESIGN §2). Every rank
- * returns its scene, or NULL when any rank has none. */
-static psys_scene *share_scene(psys_scene *scene)
+/* The scene file's own text when rank 0's scene is exactly what it loads
+ * to (a plain scene file, read again: structures stay unexpanded, so the
+ * text is short and quick to parse); NULL otherwise. On success *scene is
+ * replaced by the scene parsed from that text, so every rank parses the
+ * same bytes. */
+static char *scene_file_text(const run_opts *o, psys_scene **scene, long long *len)
+{
+    if (o->resume || !o->scene || strcmp(o->scene, "-") == 0)
+        return NULL;
+    FILE *fp = fopen(o->scene, "rb");
+    size_t n = 0;
+    char *text = fp ? cli_read_all(fp, &n) : NULL;
+    if (fp)
+        fclose(fp);
+    psys_error err;
+    psys_scene *again = text ? psys_scene_load_string(text, n, &err) : NULL;
+    if (!again) { /* the file changed or vanished: pass the loaded scene instead */
+        free(text);
+        return NULL;
+    }
+    psys_scene_destroy(*scene);
+    *scene = again;
+    *len = (long long)n;
+    return text;
+}
+
+/* Rank 0's scene (NULL: it failed) to every rank: the scene file's text, or
+ * for a checkpoint or standard input the exact scene text a checkpoint
+ * holds (saving and loading is exact, DESIGN §2). Every rank returns its
+ * scene, or NULL when any rank has none. */
+static psys_scene *share_scene(const run_opts *o, psys_scene *scene)
 {
     psys_error err;
     char *text = NULL;
     long long len = -1;
-    if (mpi_rank == 0 && scene) {
+    if (mpi_rank == 0 && scene && !(text = scene_file_text(o, &scene, &len))) {
         const psys_resume_state *rs = psys_scene_resume_state(scene);
         if (!(text = psys_scene_to_string(scene, rs->present ? rs : NULL, &err)))
             cli_error("cannot pass the scene to the other MPI ranks: %s", err.message);
@@ -731,7 +758,7 @@ static int run_main(int argc, char **argv)
     psys_scene *scene = mpi_rank == 0 ? load_for_run(&o) : NULL;
 #ifdef PSYS_MPI
     if (mpi_size > 1)
-        scene = share_scene(scene);
+        scene = share_scene(&o, scene);
 #endif
     if (!scene)
         return EXIT_BAD_INPUT;

@@ -187,10 +187,38 @@ def arm():
     return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.002, "steps": 40,
             "particles": parts, "forces": forces}
 
+def crank():
+    # Controlled particles across ranks: 12 ropes of 16 beads hang from
+    # driven ends (circles, oscillations, keyframes); soft repulsion between
+    # all beads (so they migrate), gravity, drag, 2-D, free space.
+    parts, forces = [], [{"type": "gravity", "g": [0, -9.81]}, {"type": "drag", "kd": 0.01}]
+    kinds = ["circle", "oscillate", "keyframes"]
+    for r in range(12):
+        x0 = 0.35 * r
+        kind = kinds[r % 3]
+        if kind == "circle":
+            ctl = {"type": "circle", "center": [x0, 0.05], "radius": 0.05, "omega": 9 + r, "phase": 0.4 * r}
+        elif kind == "oscillate":
+            ctl = {"type": "oscillate", "center": [x0, 0], "direction": [1, 0.3], "amplitude": 0.08, "omega": 7.0}
+        else:
+            ctl = {"type": "keyframes", "frames": [[0, x0, 0], [0.03, x0 + 0.1, 0.02], [0.06, x0 - 0.05, 0], [1, x0, 0]]}
+        # the controller's position at t = 0
+        x_start = {"circle": [round(x0 + 0.05 * math.cos(0.4 * r), 6), round(0.05 + 0.05 * math.sin(0.4 * r), 6)],
+                   "oscillate": [x0, 0], "keyframes": [x0, 0]}[kind]
+        parts.append({"id": "top%d" % r, "x": x_start, "control": ctl})
+        for k in range(1, 16):
+            parts.append({"id": "r%d.%d" % (r, k), "x": [round(x0 + 0.03 * k, 6), round(-0.07 * k, 6)], "mass": 0.02})
+        for k in range(16 - 1):
+            a = "top%d" % r if k == 0 else "r%d.%d" % (r, k)
+            forces.append({"type": "spring", "a": a, "b": "r%d.%d" % (r, k + 1), "ks": 300, "kd": 0.2})
+    forces.append({"type": "pair", "law": "soft-repulsion", "k": 100, "radius": 0.05, "method": "grid", "skin": 0.01})
+    return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.001, "steps": 60,
+            "particles": parts, "forces": forces}
+
 scenes = {"lj-grid": lj_box("grid", "lj-grid"), "lj-direct": lj_box("direct", "lj-direct"),
           "gravity-direct": galaxy("direct"), "gravity-bh": galaxy("barnes-hut"), "granular": granular(),
           "lj-melt": lj_melt(), "gas2d": gas2d(),
-          "cloth": cloth(), "polymer": polymer(), "arm": arm()}
+          "cloth": cloth(), "polymer": polymer(), "arm": arm(), "crank": crank()}
 for name, sc in scenes.items():
     with open(name + ".json", "w") as fp:
         json.dump(sc, fp, separators=(",", ":"))
