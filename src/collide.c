@@ -204,6 +204,8 @@ static psys_status step_exact(psys_solver *solver, double h)
 static void save_state(const psys_system *s, double *y)
 {
     size_t nd = s->n * (size_t)s->dim;
+    if (!nd)
+        return;
     memcpy(y, s->x, nd * sizeof(double));
     memcpy(y + nd, s->v, nd * sizeof(double));
 }
@@ -211,9 +213,17 @@ static void save_state(const psys_system *s, double *y)
 static void restore_state(psys_system *s, const double *y, double t)
 {
     size_t nd = s->n * (size_t)s->dim;
-    memcpy(s->x, y, nd * sizeof(double));
-    memcpy(s->v, y + nd, nd * sizeof(double));
+    if (nd) {
+        memcpy(s->x, y, nd * sizeof(double));
+        memcpy(s->v, y + nd, nd * sizeof(double));
+    }
     s->t = t;
+}
+
+/* Does this rank move particle i (all do without hooks)? */
+static inline bool moves(const psys__collide_hooks *hk, const psys_system *s, size_t i)
+{
+    return !(s->flags[i] & PSYS_PARTICLE_NOT_FREE) && (!hk || hk->own[i]);
 }
 
 /* Put particle i on plane pl and apply the collision response to an
@@ -239,7 +249,8 @@ static void respond(psys_system *s, const psys__plane *pl, size_t i)
  * step, or 2 if none. A particle touching the plane at y0 and moving into it
  * collides at alpha = 0; one resting on it, or leaving it too slowly to be
  * clear by the end of the step, is left to the end-of-step pass. */
-static double earliest_crossing(const psys_system *s, const double *y0, size_t *who, size_t *plane)
+static double earliest_crossing(const psys_system *s, const psys__collide_hooks *hk, const double *y0, size_t *who,
+                                size_t *plane)
 {
     int d = s->dim;
     double best = 2;
@@ -248,7 +259,7 @@ static double earliest_crossing(const psys_system *s, const double *y0, size_t *
         if (pl->response != PSYS_RESPONSE_ROLLBACK)
             continue;
         for (size_t i = 0; i < s->n; i++) {
-            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+            if (!moves(hk, s, i))
                 continue;
             double d1 = plane_distance(pl, s->x + i * d, d);
             if (d1 >= 0)
@@ -273,9 +284,25 @@ static double earliest_crossing(const psys_system *s, const double *y0, size_t *
 
 psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken)
 {
+    return psys__advance(s, solver, h_max, h_taken, NULL);
+}
+
+/* The distance of the crossing particle, from the rank that owns it. */
+static double who_distance(const psys__collide_hooks *hk, const psys__plane *pl, const double *x, size_t who, bool mine,
+                           int d)
+{
+    double dist = mine ? plane_distance(pl, x + who * d, d) : 0.0;
+    return hk ? hk->share(hk->ctx, dist, mine) : dist;
+}
+
+psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken,
+                          const psys__collide_hooks *hk)
+{
     double h = 0;
     psys_solver_set_threads(solver, psys_system_effective_threads(s));
-    if (!s->nplanes || !s->n) { /* nothing can collide (and the scratch state is NULL with no particles) */
+    /* nothing can collide (and the scratch state is NULL with no particles;
+     * across ranks every rank takes part in the events, however few it has) */
+    if (!s->nplanes || (!s->n && !hk)) {
         psys_status st = psys_solver_step(solver, h_max, &h);
         if (st == PSYS_OK)
             psys__box_wrap(s); /* periodic axes: back into the box after each accepted step */
@@ -294,15 +321,19 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
     double left = h;
     /* Each pass handles the earliest contact event in the rest of the step. */
     for (int pass = 0; pass < 64 && left > 0; pass++) {
-        size_t who = 0, pk = 0;
-        double alpha = earliest_crossing(s, y0, &who, &pk);
+        size_t who = SIZE_MAX, pk = 0;
+        double alpha = earliest_crossing(s, hk, y0, &who, &pk);
+        bool mine = who != SIZE_MAX; /* this rank holds the crossing particle */
+        size_t who_g = mine ? (hk ? hk->gid[who] : who) : SIZE_MAX;
+        if (hk) /* the earliest over all ranks; every rank the same (alpha, plane, particle) */
+            mine = hk->earliest(hk->ctx, &alpha, &pk, &who_g) && mine;
         if (alpha > 1)
             break;
         const psys__plane *pl = &s->planes[pk];
         /* Regula falsi (Illinois) on the crossing particle's distance, each
          * trial re-integrating the partial step from y0. */
-        double lo = 0, hi = 1, dlo = plane_distance(pl, y0 + who * d, d);
-        double dhi = plane_distance(pl, s->x + who * d, d), scale = dlo - dhi;
+        double lo = 0, hi = 1, dlo = who_distance(hk, pl, y0, who, mine, d);
+        double dhi = who_distance(hk, pl, s->x, who, mine, d), scale = dlo - dhi;
         int side = 0;
         double done = alpha; /* the fraction the current state was integrated to */
         for (int it = 0; it < 12; it++) {
@@ -310,7 +341,7 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
             if (alpha > 0 && (st = step_exact(solver, alpha * left)) != PSYS_OK)
                 return st;
             done = alpha;
-            double dc = plane_distance(pl, s->x + who * d, d);
+            double dc = who_distance(hk, pl, s->x, who, mine, d);
             if (alpha == 0 || fabs(dc) <= 1e-12 * scale || hi - lo <= 1e-15)
                 break;
             if (dc > 0) {
@@ -335,8 +366,7 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
             if (q->response != PSYS_RESPONSE_ROLLBACK)
                 continue;
             for (size_t i = 0; i < s->n; i++)
-                if (!(s->flags[i] & PSYS_PARTICLE_NOT_FREE)
-                    && (i == who && k == pk ? true : plane_distance(q, s->x + i * d, d) < 0))
+                if (moves(hk, s, i) && (mine && i == who && k == pk ? true : plane_distance(q, s->x + i * d, d) < 0))
                     respond(s, q, i);
         }
         t0 += done * left;
@@ -356,7 +386,7 @@ psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_ma
     for (size_t k = 0; k < s->nplanes; k++) {
         const psys__plane *pl = &s->planes[k];
         for (size_t i = 0; i < s->n; i++) {
-            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+            if (!moves(hk, s, i))
                 continue;
             double dist = plane_distance(pl, s->x + i * d, d);
             if (dist < 0) {

@@ -284,6 +284,25 @@ extern const psys__force_io psys__mouse_io;
 extern const psys__force_io psys__behavior_io;
 extern const psys__force_io psys__pair_io;
 
+/* ---- plane collisions across MPI ranks (collide.c, mpi_domain.c) ---- */
+/** What psys__advance needs when the system is one rank's part of a larger
+ *  one: the particles it moves, their global indices, and two collectives. */
+typedef struct psys__collide_hooks {
+    const unsigned char *own; /* 1: this rank moves particle i */
+    const size_t *gid;        /* global index of each particle */
+    void *ctx;
+    /** Combine each rank's earliest contact event (fraction of the step,
+     *  plane, global particle; SIZE_MAX particle: none) into the earliest of
+     *  all (ties: lower plane, then lower particle); true on the rank that
+     *  owns its particle. */
+    bool (*earliest)(void *ctx, double *alpha, size_t *plane, size_t *gid);
+    /** The value of the rank where mine is true, on every rank. */
+    double (*share)(void *ctx, double value, bool mine);
+} psys__collide_hooks;
+/** psys_system_advance, with hooks for a rank's part of a system (NULL: the whole system). */
+psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken,
+                          const psys__collide_hooks *hk);
+
 /* ---- periodic box and pair forces (box.c, force_pair.c) ---- */
 /** Wrap free particles into the box on periodic axes (after accepted steps). */
 void psys__box_wrap(psys_system *s);

@@ -90,6 +90,9 @@ struct psys__domain {
      * of its owned particles (the keyframes stay here) */
     psys__controller *gctrl;
     size_t ngctrl, ctrl_cap;
+    /* planes: the collision code's collectives (psys__advance) */
+    psys__collide_hooks hooks;
+    int who_rank;     /* the rank owning the particle of the current contact event */
     double skin;     /* displacements of two particles may add up to less than this */
     int *bin_part[3];      /* level L: lev_cells[L]·parts·DOMAIN_BINS, the part each bin goes to */
     uint64_t *hist;        /* size·DOMAIN_BINS (the largest level's histogram) */
@@ -861,6 +864,42 @@ static int redistribute(psys__domain *D)
 
 /* ---- stepping ---- */
 
+/* Every rank's earliest contact event; the lexicographic minimum of
+ * (fraction, plane, particle), as the serial search finds it. */
+static bool dd_earliest(void *ctx, double *alpha, size_t *plane, size_t *gid)
+{
+    psys__domain *D = ctx;
+    double in[3] = {*alpha, (double)*plane, *gid == SIZE_MAX ? -1.0 : (double)*gid};
+    if (MPI_Allgather(in, 3, MPI_DOUBLE, D->gath, 3, MPI_DOUBLE, D->comm) != MPI_SUCCESS)
+        return false; /* MPI errors abort by default */
+    int best = -1;
+    for (int r = 0; r < D->size; r++) {
+        const double *c = D->gath + 3 * r, *b = best < 0 ? NULL : D->gath + 3 * best;
+        if (c[2] < 0)
+            continue;
+        if (!b || c[0] < b[0] || (c[0] == b[0] && (c[1] < b[1] || (c[1] == b[1] && c[2] < b[2]))))
+            best = r;
+    }
+    D->who_rank = best < 0 ? 0 : best;
+    if (best < 0) {
+        *alpha = 2; /* no event anywhere */
+        *gid = SIZE_MAX;
+        return false;
+    }
+    *alpha = D->gath[3 * best];
+    *plane = (size_t)D->gath[3 * best + 1];
+    *gid = (size_t)D->gath[3 * best + 2];
+    return best == D->rank;
+}
+
+static double dd_share(void *ctx, double value, bool mine)
+{
+    psys__domain *D = ctx;
+    (void)mine;
+    MPI_Bcast(&value, 1, MPI_DOUBLE, D->who_rank, D->comm);
+    return value;
+}
+
 static void save_state(psys__domain *D)
 {
     const size_t nd = D->nloc * (size_t)D->dim;
@@ -900,7 +939,13 @@ psys_status psys__domain_advance(psys__domain *D, double h_max, double *h_taken)
     double h = 0;
     for (int attempt = 0;; attempt++) {
         psys_solver_set_threads(D->solver, psys_system_effective_threads(s));
-        st = psys_solver_step(D->solver, h_max, &h);
+        if (s->nplanes) { /* contact events: the serial collision code with collectives */
+            D->hooks.own = D->own;
+            D->hooks.gid = D->gid;
+            st = psys__advance(s, D->solver, h_max, &h, &D->hooks);
+        } else {
+            st = psys_solver_step(D->solver, h_max, &h);
+        }
         if (!D->stale) /* the same on every rank (an all-reduced decision) */
             break;
         restore_state(D, t0);
@@ -956,8 +1001,6 @@ static const char *unsupported(const psys_system *g, const char *integrator, dou
 {
     if (strcmp(integrator, "implicit-euler") == 0)
         return "implicit-euler solves for the whole system at once";
-    if (g->nplanes)
-        return "the scene has planes (contact events couple every particle)";
     double range = -1, sk = 0;
     for (size_t k = 0; k < g->nforces; k++) {
         const psys_force_class *c = g->forces[k].cls;
@@ -1062,6 +1105,13 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
         s->threads = g->threads;
         s->box = g->box;
         s->t = g->t;
+        D->hooks.ctx = D;
+        D->hooks.earliest = dd_earliest;
+        D->hooks.share = dd_share;
+        for (size_t k = 0; k < g->nplanes && ok; k++) {
+            psys_plane_def def;
+            ok = psys_system_plane(g, k, &def) == PSYS_OK && psys_system_add_plane(s, &def) == PSYS_OK;
+        }
         for (size_t k = 0; k < g->nforces && ok; k++) {
             const psys_force_class *c = g->forces[k].cls;
             psys_status st;

@@ -1,7 +1,7 @@
 # MPI equivalence tests (docs/mpi.md), only in an -DPSYS_MPI=ON build: 2 and
 # 4 ranks on one machine (oversubscribed) against the serial run, byte for byte.
 if(PSYS_MPI)
-  foreach(case lj-grid lj-direct gravity-direct gravity-bh granular lj-melt gas2d cloth polymer arm crank checkpoint errors)
+  foreach(case lj-grid lj-direct gravity-direct gravity-bh granular lj-melt gas2d cloth polymer arm crank hail checkpoint errors)
     add_test(NAME mpi.${case}
       COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/mpi.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR}
               ${MPIEXEC_EXECUTABLE} ${case})
@@ -24,7 +24,7 @@ if(PSYS_MPI)
     add_test(NAME mpi.api.${r} COMMAND ${MPIEXEC_EXECUTABLE} ${PSYS_MPIEXEC_FLAGS} -n ${r} $<TARGET_FILE:test_mpi>
              ${CMAKE_CURRENT_SOURCE_DIR}/mpi/lj-melt.json ${CMAKE_CURRENT_SOURCE_DIR}/mpi/cloth.json
              ${CMAKE_CURRENT_SOURCE_DIR}/mpi/polymer.json ${CMAKE_CURRENT_SOURCE_DIR}/mpi/arm.json
-             ${CMAKE_CURRENT_SOURCE_DIR}/mpi/crank.json)
+             ${CMAKE_CURRENT_SOURCE_DIR}/mpi/crank.json ${CMAKE_CURRENT_SOURCE_DIR}/mpi/hail.json)
     set_tests_properties(mpi.api.${r} PROPERTIES LABELS mpi TIMEOUT 300
       ENVIRONMENT "OMPI_ALLOW_RUN_AS_ROOT=1;OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1")
   endforeach()

@@ -98,13 +98,13 @@ errors)
     "$PSYS" run "$scene" --steps 5 --out ts.csv --energy es.csv --quiet
     cmp -s t.csv ts.csv && cmp -s e.csv es.csv && ok || fail "4 ranks: trajectory or energy CSV differs from serial"
     ls ./*.tmp* .*.tmp* >/dev/null 2>&1 && fail "temporary files left behind" || ok
-    # --mpi domain on a scene it cannot split (planes, springs): exit 2, the reason, no file.
-    mpirun 2 run "$scene" --steps 5 --out d.csv --mpi domain >out.txt 2>err.txt
+    # --mpi domain on a run it cannot split (implicit-euler): exit 2, the reason, no file.
+    mpirun 2 run "$scene" --steps 5 --out d.csv --mpi domain --integrator implicit-euler >out.txt 2>err.txt
     RC=$?
-    [ "$RC" -eq 2 ] && ok || fail "--mpi domain with planes: exit $RC, want 2"
-    grep -q 'cannot decompose the domain: the scene has planes' err.txt && ok \
-        || fail "--mpi domain with planes: want the reason, got: $(cat err.txt)"
-    [ ! -e d.csv ] && ok || fail "--mpi domain with planes: d.csv was created"
+    [ "$RC" -eq 2 ] && ok || fail "--mpi domain with implicit-euler: exit $RC, want 2"
+    grep -q 'cannot decompose the domain: implicit-euler solves for the whole system at once' err.txt && ok \
+        || fail "--mpi domain with implicit-euler: want the reason, got: $(cat err.txt)"
+    [ ! -e d.csv ] && ok || fail "--mpi domain with implicit-euler: d.csv was created"
     mpirun 2 run "$scene" --steps 5 --mpi sideways >out.txt 2>err.txt
     RC=$?
     [ "$RC" -eq 2 ] && grep -q -- '--mpi: must be auto, domain or replicated' err.txt && ok \

@@ -212,13 +212,37 @@ def crank():
             a = "top%d" % r if k == 0 else "r%d.%d" % (r, k)
             forces.append({"type": "spring", "a": a, "b": "r%d.%d" % (r, k + 1), "ks": 300, "kd": 0.2})
     forces.append({"type": "pair", "law": "soft-repulsion", "k": 100, "radius": 0.05, "method": "grid", "skin": 0.01})
-    return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.001, "steps": 60,
+    return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.001, "steps": 40,
             "particles": parts, "forces": forces}
+
+def hail():
+    # Contact events across ranks: 300 grains and a 12-bead chain thrown
+    # down onto a floor (restitution, friction) between two walls, soft
+    # repulsion between all, gravity, 2-D. Grains hit the planes from the
+    # first steps on, on every rank, and migrate.
+    rnd = random.Random(29)
+    parts, forces = [], [{"type": "gravity", "g": [0, -9.81]}]
+    for i in range(300):
+        x = [round(0.03 + 0.065 * (i % 20) + rnd.uniform(-0.01, 0.01), 6),
+             round(0.02 + 0.065 * (i // 20) + rnd.uniform(-0.005, 0.005), 6)]
+        v = [round(rnd.uniform(-1, 1), 6), round(rnd.uniform(-3, -1), 6)]
+        parts.append({"x": x, "v": v, "mass": round(0.5 + rnd.random(), 4)})
+    for k in range(12):
+        parts.append({"id": "c%d" % k, "x": [round(0.1 + 0.1 * k, 6), round(1.4 - 0.1 * k, 6) + 0.0325], "v": [0, -2],
+                      "mass": 0.5})  # a diagonal between the grains' rows: every cut crosses it
+        if k:
+            forces.append({"type": "spring", "a": "c%d" % (k - 1), "b": "c%d" % k, "ks": 400, "kd": 0.5})
+    forces.append({"type": "pair", "law": "soft-repulsion", "k": 300, "radius": 0.05, "method": "grid", "skin": 0.01})
+    planes = [{"point": [0, 0], "normal": [0, 1], "restitution": 0.6, "friction": 0.3},
+              {"point": [0, 0], "normal": [1, 0], "restitution": 0.8},
+              {"point": [1.33, 0], "normal": [-1, 0.05], "restitution": 0.8, "friction": 0.1}]
+    return {"psys": 1, "dim": 2, "integrator": "rk4", "dt": 0.001, "steps": 40,
+            "particles": parts, "forces": forces, "planes": planes}
 
 scenes = {"lj-grid": lj_box("grid", "lj-grid"), "lj-direct": lj_box("direct", "lj-direct"),
           "gravity-direct": galaxy("direct"), "gravity-bh": galaxy("barnes-hut"), "granular": granular(),
           "lj-melt": lj_melt(), "gas2d": gas2d(),
-          "cloth": cloth(), "polymer": polymer(), "arm": arm(), "crank": crank()}
+          "cloth": cloth(), "polymer": polymer(), "arm": arm(), "crank": crank(), "hail": hail()}
 for name, sc in scenes.items():
     with open(name + ".json", "w") as fp:
         json.dump(sc, fp, separators=(",", ":"))
