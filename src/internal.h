@@ -39,6 +39,9 @@ void psys__ok(psys_error *err);
 void *psys__calloc(size_t n, size_t size);
 /** Overflow-checked realloc of n*size bytes. */
 void *psys__realloc(void *p, size_t n, size_t size);
+/** p (*cap elements of size bytes) grown by doubling to hold want; NULL on
+ *  failure, with p and *cap as they were. */
+void *psys__grow(void *p, size_t *cap, size_t want, size_t size);
 /** strdup that does not depend on POSIX. */
 char *psys__strdup(const char *s);
 /** JSON syntax check that allocates nothing (json_check.c): 0 valid, 1 syntax

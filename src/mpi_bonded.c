@@ -444,22 +444,9 @@ static size_t find(const size_t *a, size_t n, size_t v)
     return lo < n && a[lo] == v ? lo : n;
 }
 
-/* p grown to hold want elements of size bytes (*cap updated); NULL on failure. */
-static void *grow(void *p, size_t *cap, size_t want, size_t size)
-{
-    if (want <= *cap && p)
-        return p;
-    size_t c = *cap > 64 ? *cap : 64;
-    while (c < want)
-        c *= 2;
-    void *q = psys__realloc(p, c, size);
-    if (q)
-        *cap = c;
-    return q;
-}
 #define GROW(field, cap, want)                                                  \
     do {                                                                        \
-        void *grown_ = grow(B->field, &(cap), (want), sizeof *B->field);        \
+        void *grown_ = psys__grow(B->field, &(cap), (want), sizeof *B->field);        \
         if (!grown_)                                                            \
             return -1;                                                          \
         B->field = grown_;                                                      \

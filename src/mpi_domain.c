@@ -372,23 +372,9 @@ static void choose_parts(psys__domain *D, const double *len)
 
 /* ---- storage ---- */
 
-/* A buffer p of *cap elements of size bytes, grown (doubling) to hold want;
- * NULL on failure, with p and *cap as they were. */
-static void *grow(void *p, size_t *cap, size_t want, size_t size)
-{
-    if (want <= *cap && p)
-        return p;
-    size_t c = *cap ? *cap : 64;
-    while (c < want)
-        c *= 2;
-    void *q = psys__realloc(p, c, size);
-    if (q)
-        *cap = c;
-    return q;
-}
 /* D->field grown to hold want elements; false (and the buffer kept) on failure. */
 #define GROW_BUF(field, cap, want) \
-    ((D->grown = grow((field), &(cap), (want), sizeof *(field))) != NULL && ((field) = D->grown, true))
+    ((D->grown = psys__grow((field), &(cap), (want), sizeof *(field))) != NULL && ((field) = D->grown, true))
 
 /* Local arrays for m particles (0 on success). */
 static int reserve_local(psys__domain *D, size_t m)

@@ -67,6 +67,22 @@ void *psys__realloc(void *p, size_t n, size_t size)
     return realloc(p, n * size);
 }
 
+void *psys__grow(void *p, size_t *cap, size_t want, size_t size)
+{
+    if (want <= *cap && p)
+        return p;
+    size_t c = *cap ? *cap : 64;
+    while (c < want) {
+        if (c > SIZE_MAX / 2)
+            return NULL;
+        c *= 2;
+    }
+    void *q = psys__realloc(p, c, size);
+    if (q)
+        *cap = c;
+    return q;
+}
+
 char *psys__strdup(const char *s)
 {
     size_t len = strlen(s) + 1;

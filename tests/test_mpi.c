@@ -59,6 +59,27 @@ static psys_system *make(psys_pair_method method)
     return s;
 }
 
+/* The scene at path loaded twice (the serial and the decomposed run's),
+ * with the integrator and one thread each; false (checked) on failure. */
+static bool load_pair(const char *path, const char *integrator, psys_scene **ss, psys_scene **ds)
+{
+    psys_error err;
+    *ss = psys_scene_load_file(path, &err);
+    *ds = psys_scene_load_file(path, &err);
+    CHECK(*ss && *ds);
+    if (!*ss || !*ds) {
+        psys_scene_destroy(*ss);
+        psys_scene_destroy(*ds);
+        return false;
+    }
+    for (int k = 0; k < 2; k++) {
+        psys_scene *sc = k ? *ds : *ss;
+        snprintf(psys_scene_settings(sc)->integrator, sizeof psys_scene_settings(sc)->integrator, "%s", integrator);
+        psys_system_set_threads(psys_scene_system(sc), 1); /* a rank per core: OpenMP's default would oversubscribe */
+    }
+    return true;
+}
+
 /* Steps of the scene's run at path, serial on every rank and decomposed over
  * MPI_COMM_WORLD, compared on rank 0 at two gathers. tol 0: bit for bit. */
 static void domain_case(const char *path, const char *integrator, double tol)
@@ -67,15 +88,10 @@ static void domain_case(const char *path, const char *integrator, double tol)
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
     psys_error err;
-    psys_scene *ss = psys_scene_load_file(path, &err), *ds = psys_scene_load_file(path, &err);
-    CHECK(ss && ds);
-    if (!ss || !ds)
+    psys_scene *ss, *ds;
+    if (!load_pair(path, integrator, &ss, &ds))
         return;
-    snprintf(psys_scene_settings(ss)->integrator, sizeof psys_scene_settings(ss)->integrator, "%s", integrator);
-    snprintf(psys_scene_settings(ds)->integrator, sizeof psys_scene_settings(ds)->integrator, "%s", integrator);
     psys_system *ssys = psys_scene_system(ss), *dsys = psys_scene_system(ds);
-    psys_system_set_threads(ssys, 1); /* a rank per core: OpenMP's default would oversubscribe */
-    psys_system_set_threads(dsys, 1);
     const size_t n = psys_system_count(ssys), nd = 3 * n;
     psys_run *sr = psys_run_create(ss, &err), *dr = psys_run_create(ds, &err);
     CHECK(sr && dr);
@@ -143,23 +159,18 @@ static void domain_case(const char *path, const char *integrator, double tol)
  * serial run's to the bit, on a scene where nothing migrates (cloth), one
  * with migrations (polymer: bead-spring chains in a Lennard-Jones droplet),
  * one of behaviour functions (arm), one of ropes hanging from controlled
- * particles, migrating (crank), and grains and a chain falling onto a floor
- * with restitution and friction (granular: contact events across ranks). */
+ * particles, migrating (crank), and grains and a chain thrown onto a floor
+ * between walls (hail: contact events across ranks). */
 static void bonded_case(const char *path, const char *integrator, size_t min_redis)
 {
     int rank, size;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
     psys_error err;
-    psys_scene *ss = psys_scene_load_file(path, &err), *ds = psys_scene_load_file(path, &err);
-    CHECK(ss && ds);
-    if (!ss || !ds)
+    psys_scene *ss, *ds;
+    if (!load_pair(path, integrator, &ss, &ds))
         return;
-    snprintf(psys_scene_settings(ss)->integrator, sizeof psys_scene_settings(ss)->integrator, "%s", integrator);
-    snprintf(psys_scene_settings(ds)->integrator, sizeof psys_scene_settings(ds)->integrator, "%s", integrator);
     psys_system *ssys = psys_scene_system(ss), *dsys = psys_scene_system(ds);
-    psys_system_set_threads(ssys, 1);
-    psys_system_set_threads(dsys, 1);
     const size_t n = psys_system_count(ssys), nd = (size_t)psys_system_dim(ssys) * n;
     unsigned long long terms = psys_system_spring_count(ssys);
     for (size_t k = 0; k < psys_system_force_count(ssys); k++)
