@@ -292,7 +292,7 @@ static double who_distance(const psys__collide_hooks *hk, const psys__plane *pl,
                            int d)
 {
     double dist = mine ? plane_distance(pl, x + who * d, d) : 0.0;
-    return hk ? hk->share(hk->ctx, dist, mine) : dist;
+    return hk ? hk->share(hk->ctx, dist) : dist;
 }
 
 psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken,

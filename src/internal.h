@@ -299,8 +299,8 @@ typedef struct psys__collide_hooks {
      *  all (ties: lower plane, then lower particle); true on the rank that
      *  owns its particle. */
     bool (*earliest)(void *ctx, double *alpha, size_t *plane, size_t *gid);
-    /** The value of the rank where mine is true, on every rank. */
-    double (*share)(void *ctx, double value, bool mine);
+    /** The value of the rank owning the last earliest event's particle, on every rank. */
+    double (*share)(void *ctx, double value);
 } psys__collide_hooks;
 /** psys_system_advance, with hooks for a rank's part of a system (NULL: the whole system). */
 psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken,

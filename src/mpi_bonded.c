@@ -544,16 +544,26 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
                 cm += psys__springs_muscle(o->data, B->lterm[u] - o->term0, NULL, NULL, NULL);
             }
         }
-    size_t c2 = B->spcap, c4 = B->spcap, c5 = B->spcap, c6 = B->spcap;
-    GROW(sp_a, B->spcap, cs + 1);
-    GROW(sp_b, c2, cs + 1);
-    GROW(sp_ks, c4, cs + 1);
-    GROW(sp_kd, c5, cs + 1);
-    GROW(sp_rest, c6, cs + 1);
-    size_t m2 = B->muscap, m3 = B->muscap;
-    GROW(mus_j, B->muscap, cm + 1);
-    GROW(mus_k, m2, cm + 1);
-    GROW(mus_o, m3, cm + 1);
+    /* arrays sharing one capacity: each grows from the old one to the same
+     * new one, which is stored only once all have grown */
+    size_t cap = B->spcap;
+    GROW(sp_a, cap, cs + 1);
+    cap = B->spcap;
+    GROW(sp_b, cap, cs + 1);
+    cap = B->spcap;
+    GROW(sp_ks, cap, cs + 1);
+    cap = B->spcap;
+    GROW(sp_kd, cap, cs + 1);
+    cap = B->spcap;
+    GROW(sp_rest, cap, cs + 1);
+    B->spcap = cap;
+    cap = B->muscap;
+    GROW(mus_j, cap, cm + 1);
+    cap = B->muscap;
+    GROW(mus_k, cap, cm + 1);
+    cap = B->muscap;
+    GROW(mus_o, cap, cm + 1);
+    B->muscap = cap;
     GROW(bh_u, B->bhcap, cb + 1);
     B->nsp = B->nmus = B->nbh = 0;
     for (size_t u = 0; u < nlt; u++) {
@@ -578,11 +588,15 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
     size_t nr = 0;
     for (size_t j = 0; j < B->nsp; j++)
         nr += j == 0 || B->sp_a[j] != B->sp_a[j - 1] + 1 || B->sp_b[j] != B->sp_b[j - 1] + 1;
-    size_t r2 = B->runcap, r3 = B->runcap, r4 = B->runcap;
-    GROW(run_j, B->runcap, nr + 1);
-    GROW(run_a, r2, nr + 1);
-    GROW(run_b, r3, nr + 1);
-    GROW(run_len, r4, nr + 1);
+    cap = B->runcap;
+    GROW(run_j, cap, nr + 1);
+    cap = B->runcap;
+    GROW(run_a, cap, nr + 1);
+    cap = B->runcap;
+    GROW(run_b, cap, nr + 1);
+    cap = B->runcap;
+    GROW(run_len, cap, nr + 1);
+    B->runcap = cap;
     B->nrun = 0;
     for (size_t j = 0; j < B->nsp; j++) {
         if (j == 0 || B->sp_a[j] != B->sp_a[j - 1] + 1 || B->sp_b[j] != B->sp_b[j - 1] + 1) {

@@ -878,10 +878,9 @@ static bool dd_earliest(void *ctx, double *alpha, size_t *plane, size_t *gid)
     return best == D->rank;
 }
 
-static double dd_share(void *ctx, double value, bool mine)
+static double dd_share(void *ctx, double value)
 {
     psys__domain *D = ctx;
-    (void)mine;
     MPI_Bcast(&value, 1, MPI_DOUBLE, D->who_rank, D->comm);
     return value;
 }
