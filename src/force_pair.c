@@ -478,7 +478,8 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
          * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
             pair_soa_positions(p, x, n, nt);
-            grid_rows(p, m, w, n, own, g->fcache, nt);
+            if (!psys__pair_group_forces(p, m, x, w, n, own, g->fcache, nt))
+                grid_rows(p, m, w, n, own, g->fcache, nt);
         } else {
             fn(p, m, x, w, n, own, g->fcache, nt);
         }
@@ -538,7 +539,8 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
                 memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
     if (compute && !g->half && pair_can_vectorise(p, w, n)) {
         pair_soa_positions(p, x, n, nt);
-        grid_rows(p, m, w, n, rows, g->fcache, nt);
+        if (!psys__pair_group_forces(p, m, x, w, n, rows, g->fcache, nt))
+            grid_rows(p, m, w, n, rows, g->fcache, nt);
     }
     else if (compute)
         fn(p, m, x, w, n, rows, g->fcache, nt);

@@ -44,6 +44,11 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->xcache);
     free(g->mark);
     free(g->changed);
+    free(g->tnb);
+    free(g->xq_mem);
+    free(g->tg_off);
+    free(g->tg_len);
+    free(g->tg_min);
     memset(g, 0, sizeof *g);
 }
 
@@ -52,6 +57,7 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     void *q;
     g->built_n = 0; /* storage changes: rebuild at the next evaluation */
     g->cache_ok = false;
+    g->tg_ok = false;
 #define GROW(field, count, type)                            \
     if (!(q = psys__realloc(g->field, (count), sizeof(type)))) \
         return false;                                       \
@@ -66,6 +72,8 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     GROW(nb_start, cap, size_t)
     GROW(nb_num, cap, uint32_t)
     GROW(changed, cap, uint32_t)
+    GROW(xq_mem, cap * 4 + 4, double)
+    g->xq = (double *)(((uintptr_t)g->xq_mem + 31) & ~(uintptr_t)31);
     GROW(mark, cap, unsigned char)
     size_t cells = 2 * cap + 64, chunks = cap / CHUNK + 2;
     GROW(cell_start, cells + 1, uint32_t)
@@ -594,6 +602,9 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     g->per_particle = (double)total / (double)(listed ? listed : 1);
     p->stats.pairs = half ? total : total / 2;
 
+    g->tg_ok = false;
+    if (!half && psys__pair_group_wanted(p, n))
+        psys__pair_group_build(p, n, ntf); /* if it cannot grow, the row kernel runs */
     memcpy(g->xref, x, n * (size_t)d * sizeof(double));
     g->box = *box;
     g->built_n = n;

@@ -646,6 +646,44 @@ static void minimum_image_far(void)
             }
 }
 
+/* The same with many particles, so the grid's four-rows-at-a-time kernel
+ * (pair_group.c) meets a far partner inside a full group: that group is
+ * computed again with the exact image, and grid still equals direct bit for
+ * bit and the forces of the wrapped configuration to rounding. */
+static void minimum_image_far_groups(void)
+{
+    for (int dim = 2; dim <= 3; dim++)
+        for (int shift = -3; shift <= 3; shift += 6) {
+            psys_system *s[3];
+            for (int c = 0; c < 3; c++) {
+                s[c] = boxed_10(dim);
+                rng_state = 17;
+                for (int i = 0; i < 24; i++) {
+                    double x[3] = {urand(9.0, 11.0), urand(4.0, 6.0), urand(4.0, 6.0)};
+                    x[0] -= x[0] >= 10 ? 10 : 0; /* wrapped into [0, 10) */
+                    if (c < 2 && i == 9)
+                        x[0] += 10.0 * shift; /* particle 9 several boxes off */
+                    add(s[c], x, NULL, 1);
+                }
+                psys_pair_def def = image_lj(c == 1 ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID);
+                add_pair(s[c], &def);
+            }
+            double *fg = forces_of(s[0]), *fd = forces_of(s[1]), *fw = forces_of(s[2]);
+            CHECK(memcmp(fg, fd, 24 * (size_t)dim * sizeof(double)) == 0);
+            double fmax_ = 0;
+            for (size_t k = 0; k < 24 * (size_t)dim; k++)
+                fmax_ = fmax(fmax_, fabs(fw[k]));
+            CHECK(fmax_ > 0);
+            for (size_t k = 0; k < 24 * (size_t)dim; k++)
+                CHECK_NEAR(fg[k], fw[k], 1e-9 * fmax_);
+            free(fg);
+            free(fd);
+            free(fw);
+            for (int c = 0; c < 3; c++)
+                psys_system_destroy(s[c]);
+        }
+}
+
 static void minimum_image(void)
 {
     for (int dim = 2; dim <= 3; dim++)
@@ -1390,6 +1428,7 @@ static const check_case cases[] = {
     {"grid_cache_matches_direct", grid_cache_matches_direct},
     {"minimum_image", minimum_image},
     {"minimum_image_far", minimum_image_far},
+    {"minimum_image_far_groups", minimum_image_far_groups},
     {"wrapping", wrapping},
     {"box_validation", box_validation},
     {"thread_determinism_grid", thread_determinism_grid},

@@ -1,0 +1,313 @@
+/* Grid pair forces four rows at a time (AVX2): the lanes of a vector are
+ * four consecutive particles i, each walking its own neighbour list.
+ *
+ * Why: the row kernel (pair_row_forces) vectorises over a particle's
+ * partners and then adds their forces one after another, a chain of additions
+ * as long as the list, and GCC loads the partners one by one there. Here each
+ * lane adds its own partners' forces in its own list order, so the four
+ * chains run side by side, and partners' coordinates come in with gathers.
+ *
+ * Same bits: per lane, the operations of pair_row_terms and pair_kernel in
+ * the same order (no FMA, division and square root correctly rounded), and
+ * the same sum in list order starting from +0. Lanes whose list has ended
+ * add +0, which changes no sum (a sum started at +0 is never -0). Groups in
+ * which some |x_i - x_j| reaches 1.5 box lengths on a periodic axis are
+ * computed again by pair_row_forces (the exact minimum image); so are the
+ * last n mod 4 rows.
+ *
+ * Lists: psys__pair_group_build copies the grid's full lists into groups of
+ * four, interleaved (entry k of the four lists side by side), the shorter
+ * lists padded with their own particle. */
+#include "pair.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__)
+#define PSYS_GROUP_AVX2 1
+#endif
+
+#define GROUP 4
+#define GROUP_CHUNK 16 /* groups per parallel task */
+
+bool psys__pair_group_wanted(const pair_force *p, size_t n)
+{
+#if defined(PSYS_GROUP_AVX2)
+    /* gathers take signed 32-bit indices; PSYS_GROUP_OFF in the environment
+     * forces the row kernel, so tests cover both paths on any machine */
+    return (p->law == PSYS_PAIR_LENNARD_JONES || p->law == PSYS_PAIR_SOFT_REPULSION) && n <= INT32_MAX
+           && __builtin_cpu_supports("avx2") && !getenv("PSYS_GROUP_OFF");
+#else
+    (void)p;
+    (void)n;
+    return false;
+#endif
+}
+
+bool psys__pair_group_build(pair_force *p, size_t n, int nt)
+{
+    pair_grid *g = &p->grid;
+    const size_t ng = n / GROUP;
+    g->tg_ok = false;
+    if (ng == 0)
+        return false;
+    if (ng + 1 > g->tg_cap) {
+        size_t cap = ng + ng / 8 + 16;
+        size_t *off = psys__realloc(g->tg_off, cap + 1, sizeof *off);
+        if (!off)
+            return false;
+        g->tg_off = off;
+        uint32_t *len = psys__realloc(g->tg_len, cap, sizeof *len);
+        if (!len)
+            return false;
+        g->tg_len = len;
+        uint32_t *mn = psys__realloc(g->tg_min, cap, sizeof *mn);
+        if (!mn)
+            return false;
+        g->tg_min = mn;
+        g->tg_cap = cap;
+    }
+    g->tg_off[0] = 0;
+    for (size_t b = 0; b < ng; b++) {
+        uint32_t hi = 0, lo = UINT32_MAX;
+        for (int l = 0; l < GROUP; l++) {
+            uint32_t c = g->nb_num[b * GROUP + (size_t)l];
+            hi = c > hi ? c : hi;
+            lo = c < lo ? c : lo;
+        }
+        g->tg_len[b] = hi;
+        g->tg_min[b] = lo;
+        g->tg_off[b + 1] = g->tg_off[b] + (size_t)hi * GROUP;
+    }
+    const size_t need = g->tg_off[ng];
+    if (need > g->tnb_cap) {
+        size_t cap = need + need / 8 + 64;
+        uint32_t *q = psys__realloc(g->tnb, cap, sizeof *q);
+        if (!q)
+            return false;
+        g->tnb = q;
+        g->tnb_cap = cap;
+    }
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1))
+    for (size_t b = 0; b < ng; b++) {
+        uint32_t *t = g->tnb + g->tg_off[b];
+        const uint32_t len = g->tg_len[b];
+        for (int l = 0; l < GROUP; l++) {
+            const size_t i = b * GROUP + (size_t)l;
+            const uint32_t *js = g->nb + g->nb_start[i], c = g->nb_num[i];
+            for (uint32_t k = 0; k < c; k++)
+                t[(size_t)k * GROUP + (size_t)l] = js[k];
+            for (uint32_t k = c; k < len; k++)
+                t[(size_t)k * GROUP + (size_t)l] = (uint32_t)i;
+        }
+    }
+    g->tg_n = n;
+    g->tg_ok = true;
+    return true;
+}
+
+#if defined(PSYS_GROUP_AVX2)
+#include <immintrin.h>
+
+#define AVX2 __attribute__((target("avx2")))
+
+typedef struct group_consts {
+    __m256d hl[3], ln[3], fr[3], sign;
+    __m256d rc2, zero, one, two, sig2, lj4, lj24, kc, radius;
+} group_consts;
+
+/* One axis: e = x_i - x_j, then the one-box minimum image of
+ * pair_delta_folded (exact false); *far flags |e| >= 1.5 boxes. */
+AVX2 static inline __m256d group_delta(const group_consts *c, int k, __m256d e, __m256d *far)
+{
+    const __m256d a = _mm256_andnot_pd(c->sign, e);
+    const __m256d near = _mm256_sub_pd(e, _mm256_or_pd(c->ln[k], _mm256_and_pd(c->sign, e)));
+    *far = _mm256_or_pd(*far, _mm256_cmp_pd(a, c->fr[k], _CMP_GE_OQ));
+    return _mm256_blendv_pd(e, near, _mm256_cmp_pd(a, c->hl[k], _CMP_GT_OQ));
+}
+
+/* pair_kernel's g for lennard-jones or soft-repulsion (forces only). */
+AVX2 static inline __m256d group_kernel(const group_consts *c, const int law, __m256d r2)
+{
+    const __m256d in = _mm256_and_pd(_mm256_cmp_pd(r2, c->rc2, _CMP_LT_OQ), _mm256_cmp_pd(r2, c->zero, _CMP_GT_OQ));
+    const __m256d safe = _mm256_blendv_pd(c->one, r2, in);
+    __m256d g;
+    if (law == PSYS_PAIR_LENNARD_JONES) {
+        const __m256d ir2 = _mm256_div_pd(c->one, safe), s2 = _mm256_mul_pd(c->sig2, ir2);
+        const __m256d s6 = _mm256_mul_pd(_mm256_mul_pd(s2, s2), s2);
+        g = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(c->lj24, s6), _mm256_sub_pd(_mm256_mul_pd(c->two, s6), c->one)),
+                          ir2);
+    } else {
+        const __m256d r = _mm256_sqrt_pd(safe), dr = _mm256_sub_pd(c->radius, r);
+        g = _mm256_div_pd(_mm256_mul_pd(c->kc, dr), r);
+    }
+    return _mm256_and_pd(g, in);
+}
+
+/* Rows 4b..4b+3 into acc (lane l: row 4b+l; d sums of 4). True if some
+ * |x_i - x_j| reached 1.5 boxes (the caller recomputes the group exactly). */
+AVX2 static inline bool group_rows(const pair_grid *g, const group_consts *c, const int law, const int d,
+                                   const bool img, const double *X0, const double *X1, const double *X2,
+                                   const double *Q, size_t b, __m256d acc[3])
+{
+    const size_t i0 = b * GROUP;
+    const __m256d xi0 = _mm256_loadu_pd(X0 + i0), xi1 = _mm256_loadu_pd(X1 + i0);
+    const __m256d xi2 = d == 3 ? _mm256_loadu_pd(X2 + i0) : c->zero;
+    __m256d a0 = c->zero, a1 = c->zero, a2 = c->zero, far = c->zero;
+    const uint32_t *t = g->tnb + g->tg_off[b];
+    const uint32_t len = g->tg_len[b], full = g->tg_min[b];
+    (void)X2;
+    const __m128i num = _mm_loadu_si128((const __m128i *)(g->nb_num + i0));
+    for (uint32_t k = 0; k < len; k++) {
+        /* the four partners' records (x, y, z, 0), transposed: one load per
+         * partner beats three gathers on the machines measured (bench/README) */
+        const uint32_t *tk = t + (size_t)k * GROUP;
+        const __m256d p0 = _mm256_load_pd(Q + 4 * (size_t)tk[0]), p1 = _mm256_load_pd(Q + 4 * (size_t)tk[1]);
+        const __m256d p2 = _mm256_load_pd(Q + 4 * (size_t)tk[2]), p3 = _mm256_load_pd(Q + 4 * (size_t)tk[3]);
+        const __m256d u0 = _mm256_unpacklo_pd(p0, p1), u1 = _mm256_unpackhi_pd(p0, p1);
+        const __m256d u2 = _mm256_unpacklo_pd(p2, p3), u3 = _mm256_unpackhi_pd(p2, p3);
+        __m256d e0 = _mm256_sub_pd(xi0, _mm256_permute2f128_pd(u0, u2, 0x20));
+        __m256d e1 = _mm256_sub_pd(xi1, _mm256_permute2f128_pd(u1, u3, 0x20));
+        __m256d e2 = c->zero;
+        if (d == 3)
+            e2 = _mm256_sub_pd(xi2, _mm256_permute2f128_pd(u0, u2, 0x31));
+        if (img) {
+            e0 = group_delta(c, 0, e0, &far);
+            e1 = group_delta(c, 1, e1, &far);
+            if (d == 3)
+                e2 = group_delta(c, 2, e2, &far);
+        }
+        __m256d r2 = _mm256_add_pd(_mm256_mul_pd(e0, e0), _mm256_mul_pd(e1, e1));
+        if (d == 3)
+            r2 = _mm256_add_pd(r2, _mm256_mul_pd(e2, e2));
+        const __m256d gg = group_kernel(c, law, r2);
+        __m256d c0 = _mm256_mul_pd(gg, e0), c1 = _mm256_mul_pd(gg, e1);
+        if (k >= full) { /* lanes whose list has ended (partner: itself) add +0 */
+            const __m256d live = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(_mm_cmpgt_epi32(num, _mm_set1_epi32((int)k))));
+            c0 = _mm256_and_pd(c0, live);
+            c1 = _mm256_and_pd(c1, live);
+            if (d == 3)
+                a2 = _mm256_add_pd(a2, _mm256_and_pd(_mm256_mul_pd(gg, e2), live));
+        } else if (d == 3) {
+            a2 = _mm256_add_pd(a2, _mm256_mul_pd(gg, e2));
+        }
+        a0 = _mm256_add_pd(a0, c0);
+        a1 = _mm256_add_pd(a1, c1);
+    }
+    acc[0] = a0;
+    acc[1] = a1;
+    acc[2] = a2;
+    return _mm256_movemask_pd(far) != 0;
+}
+
+AVX2 static void group_chunk(const pair_force *p, const pair_image *m, const group_consts *c, const double *w,
+                             size_t b0, size_t b1, const unsigned char *rows, double *out)
+{
+    const pair_grid *g = &p->grid;
+    const int d = p->dim, law = p->law;
+    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap, *Q = g->xq;
+    const bool img = m->on;
+    for (size_t b = b0; b < b1; b++) {
+        const size_t i0 = b * GROUP;
+        if (rows && !(rows[i0] | rows[i0 + 1] | rows[i0 + 2] | rows[i0 + 3]))
+            continue;
+        __m256d acc[3];
+        bool far;
+        /* the law and dimension as constants, so each variant is specialised */
+        if (law == PSYS_PAIR_LENNARD_JONES)
+            far = d == 3 ? (img ? group_rows(g, c, PSYS_PAIR_LENNARD_JONES, 3, true, X0, X1, X2, Q, b, acc)
+                                : group_rows(g, c, PSYS_PAIR_LENNARD_JONES, 3, false, X0, X1, X2, Q, b, acc))
+                         : group_rows(g, c, PSYS_PAIR_LENNARD_JONES, 2, img, X0, X1, X2, Q, b, acc);
+        else
+            far = d == 3 ? group_rows(g, c, PSYS_PAIR_SOFT_REPULSION, 3, img, X0, X1, X2, Q, b, acc)
+                         : group_rows(g, c, PSYS_PAIR_SOFT_REPULSION, 2, img, X0, X1, X2, Q, b, acc);
+        double s[3][GROUP];
+        for (int k = 0; k < d; k++)
+            _mm256_storeu_pd(s[k], acc[k]);
+        for (int l = 0; l < GROUP; l++) {
+            const size_t i = i0 + (size_t)l;
+            if (rows && !rows[i])
+                continue;
+            if (far) {
+                double a[3] = {0, 0, 0};
+                pair_row_forces(p, law, d, m, w, i, g->nb + g->nb_start[i], 0, g->nb_num[i], true, a);
+                for (int k = 0; k < d; k++)
+                    out[i * (size_t)d + (size_t)k] = a[k];
+            } else {
+                for (int k = 0; k < d; k++)
+                    out[i * (size_t)d + (size_t)k] = s[k][l];
+            }
+        }
+    }
+}
+
+AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group_consts *c)
+{
+    double hl[3], ln[3], il[3], fr[3];
+    pair_image_fold(m, hl, ln, il, fr);
+    for (int k = 0; k < 3; k++) {
+        c->hl[k] = _mm256_set1_pd(hl[k]);
+        c->ln[k] = _mm256_set1_pd(ln[k]);
+        c->fr[k] = _mm256_set1_pd(fr[k]);
+    }
+    c->sign = _mm256_set1_pd(-0.0);
+    c->zero = _mm256_setzero_pd();
+    c->one = _mm256_set1_pd(1.0);
+    c->two = _mm256_set1_pd(2.0);
+    c->rc2 = _mm256_set1_pd(p->rc2);
+    c->sig2 = _mm256_set1_pd(p->sig2);
+    c->lj4 = _mm256_set1_pd(p->lj4);
+    c->lj24 = _mm256_set1_pd(p->lj24);
+    c->kc = _mm256_set1_pd(p->kc);
+    c->radius = _mm256_set1_pd(p->def.radius);
+}
+#endif
+
+bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                             const unsigned char *rows, double *out, int nt)
+{
+#if defined(PSYS_GROUP_AVX2)
+    const pair_grid *g = &p->grid;
+    if (!g->tg_ok || g->tg_n != n || !psys__pair_group_wanted(p, n) || !pair_can_vectorise(p, w, n))
+        return false;
+    group_consts c;
+    group_consts_of(p, m, &c);
+    const size_t ng = n / GROUP, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
+    const int d = p->dim;
+    double *Q = g->xq;
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN))
+    for (size_t i = 0; i < n; i++) {
+        Q[4 * i] = x[i * (size_t)d];
+        Q[4 * i + 1] = x[i * (size_t)d + 1];
+        Q[4 * i + 2] = d == 3 ? x[i * (size_t)d + 2] : 0.0;
+        Q[4 * i + 3] = 0.0;
+    }
+    PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
+    for (size_t q = 0; q < nchunks; q++) {
+        const size_t b0 = q * GROUP_CHUNK, b1 = b0 + GROUP_CHUNK < ng ? b0 + GROUP_CHUNK : ng;
+        group_chunk(p, m, &c, w, b0, b1, rows, out);
+    }
+    /* the last n mod 4 rows, one at a time */
+    for (size_t i = ng * GROUP; i < n; i++) {
+        if (rows && !rows[i])
+            continue;
+        double a[3] = {0, 0, 0};
+        pair_row_forces(p, p->law, p->dim, m, w, i, g->nb + g->nb_start[i], 0, g->nb_num[i], true, a);
+        for (int k = 0; k < p->dim; k++)
+            out[i * (size_t)p->dim + (size_t)k] = a[k];
+    }
+    return true;
+#else
+    (void)p;
+    (void)m;
+    (void)x;
+    (void)w;
+    (void)n;
+    (void)rows;
+    (void)out;
+    (void)nt;
+    return false;
+#endif
+}
