@@ -45,6 +45,8 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->mark);
     free(g->changed);
     free(g->tnb);
+    free(g->nb2);
+    free(g->nb_start2);
     free(g->xq_mem);
     free(g->tg_off);
     free(g->tg_len);
@@ -70,6 +72,7 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     GROW(cell_of, cap, uint32_t)
     GROW(cell_list, cap, uint32_t)
     GROW(nb_start, cap, size_t)
+    GROW(nb_start2, cap, size_t)
     GROW(nb_num, cap, uint32_t)
     GROW(changed, cap, uint32_t)
     GROW(xq_mem, cap * 4 + 4, double)
@@ -259,7 +262,7 @@ static inline double build_coord(const pair_grid *g, const pair_image *m, int k,
  * kernel cuts at the cutoff exactly). */
 PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_image *m, const double *x, size_t i,
                            uint32_t *out, size_t room, uint32_t *tmp, double rl2, const bool half,
-                           const int d, const bool use512)
+                           const int d, const bool use512, const bool sort)
 {
     const pair_grid *g = &p->grid;
     const double lim = rl2 * (1 + 1e-6);
@@ -356,7 +359,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
             }
         }
     }
-    if (cnt <= room)
+    if (cnt <= room && sort)
         sort_indices(out, cnt, tmp);
     return cnt;
 }
@@ -364,7 +367,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
 /* Fill the lists of every chunk into its region; true if none overflowed. */
 #define FILL_FN(name, D, HALF)                                                                               \
     static bool name(pair_force *p, const stencil *sc, const pair_image *m, const double *x, size_t n,       \
-                     size_t nchunks, double rl2, int nt)                                                     \
+                     size_t nchunks, double rl2, int nt, bool sort)                                          \
     {                                                                                                        \
         pair_grid *g = &p->grid;                                                                             \
         int over = 0;                                                                                        \
@@ -383,7 +386,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
                     continue;                                                                                \
                 }                                                                                            \
                 size_t room = end - pos;                                                                     \
-                size_t k = visit_d(p, sc, m, x, i, g->nb + pos, room, tmp, rl2, HALF, D, use512);            \
+                size_t k = visit_d(p, sc, m, x, i, g->nb + pos, room, tmp, rl2, HALF, D, use512, sort);      \
                 g->nb_start[i] = pos;                                                                        \
                 g->nb_num[i] = (uint32_t)k;                                                                  \
                 if (k <= room)                                                                               \
@@ -439,6 +442,52 @@ void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, u
                         mark[i] |= 1;
                 }
             }
+}
+
+/* Sort full lists by transposing them: j is in i's list exactly when i is in
+ * j's (the scan's test is symmetric up to the rounding of periodic images,
+ * which can only touch pairs at the list radius, beyond the cutoff), so
+ * walking the lists in increasing j and appending j to the list of each i
+ * found there writes every list in increasing order, in O(pairs) and with no
+ * comparisons. The result goes to nb2, which then becomes nb. */
+static bool transpose_lists(pair_grid *g, size_t n)
+{
+    uint32_t *cnt = g->changed; /* scratch: the cache is invalid after a build */
+    memset(cnt, 0, n * sizeof *cnt);
+    for (size_t j = 0; j < n; j++) {
+        const uint32_t *js = g->nb + g->nb_start[j];
+        for (uint32_t q = 0; q < g->nb_num[j]; q++)
+            cnt[js[q]]++;
+    }
+    size_t total = 0;
+    for (size_t i = 0; i < n; i++) {
+        g->nb_start2[i] = total;
+        total += cnt[i];
+    }
+    if (total > g->nb2_cap) {
+        size_t cap = total + total / 8 + 64;
+        uint32_t *q = psys__realloc(g->nb2, cap, sizeof(uint32_t));
+        if (!q)
+            return false;
+        g->nb2 = q;
+        g->nb2_cap = cap;
+    }
+    for (size_t j = 0; j < n; j++) {
+        const uint32_t *js = g->nb + g->nb_start[j];
+        for (uint32_t q = 0; q < g->nb_num[j]; q++)
+            g->nb2[g->nb_start2[js[q]]++] = (uint32_t)j;
+    }
+    for (size_t i = 0; i < n; i++) {
+        g->nb_start[i] = g->nb_start2[i] - cnt[i];
+        g->nb_num[i] = cnt[i];
+    }
+    uint32_t *t = g->nb;
+    g->nb = g->nb2;
+    g->nb2 = t;
+    size_t c = g->nb_cap;
+    g->nb_cap = g->nb2_cap;
+    g->nb2_cap = c;
+    return true;
 }
 
 static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, bool half)
@@ -561,6 +610,9 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     }
     size_t nchunks = (n + CHUNK - 1) / CHUNK;
     int ntf = pair_threads(p, 64.0 * (double)n);
+    /* full lists of every particle are sorted by transposing them (below),
+     * not one by one; a domain's ghosts have no lists, so there they are sorted */
+    const bool transpose = !half && !p->sys->own_mark;
     double per = g->per_particle * 1.2 + 4;
     if (!(per <= (double)n)) /* also NaN (a huge radius makes the density estimate inf·0) */
         per = (double)n;
@@ -584,15 +636,17 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
             g->nb = q;
             g->nb_cap = cap;
         }
-        bool ok = half ? (d == 2 ? fill_2h(p, &sc, m, x, n, nchunks, rls2, ntf)
-                                 : fill_3h(p, &sc, m, x, n, nchunks, rls2, ntf))
-                       : (d == 2 ? fill_2(p, &sc, m, x, n, nchunks, rls2, ntf)
-                                 : fill_3(p, &sc, m, x, n, nchunks, rls2, ntf));
+        bool ok = half ? (d == 2 ? fill_2h(p, &sc, m, x, n, nchunks, rls2, ntf, true)
+                                 : fill_3h(p, &sc, m, x, n, nchunks, rls2, ntf, true))
+                       : (d == 2 ? fill_2(p, &sc, m, x, n, nchunks, rls2, ntf, !transpose)
+                                 : fill_3(p, &sc, m, x, n, nchunks, rls2, ntf, !transpose));
         if (ok)
             break;
         if (exact)
             return false; /* cannot happen: the counts do not change */
     }
+    if (transpose && !transpose_lists(g, n))
+        return false;
     size_t total = 0, listed = 0;
     const unsigned char *own = p->sys->own_mark;
     for (size_t i = 0; i < n; i++) {
