@@ -110,6 +110,21 @@ bool psys__pair_group_build(pair_force *p, size_t n, int nt)
 #if defined(PSYS_GROUP_AVX2)
 #include <immintrin.h>
 
+/* Row i through pair_row_forces (the exact minimum image), stored into out;
+ * the law as a constant, as the group loop supports it. */
+static void group_row_alone(const pair_force *p, const pair_image *m, const double *w, size_t i, double *out)
+{
+    const pair_grid *g = &p->grid;
+    const int d = p->dim;
+    double a[3] = {0, 0, 0};
+    if (p->law == PSYS_PAIR_LENNARD_JONES)
+        pair_row_forces(p, PSYS_PAIR_LENNARD_JONES, d, m, w, i, g->nb + g->nb_start[i], 0, g->nb_num[i], true, a);
+    else
+        pair_row_forces(p, PSYS_PAIR_SOFT_REPULSION, d, m, w, i, g->nb + g->nb_start[i], 0, g->nb_num[i], true, a);
+    for (int k = 0; k < d; k++)
+        out[i * (size_t)d + (size_t)k] = a[k];
+}
+
 #define AVX2 __attribute__((target("avx2")))
 
 typedef struct group_consts {
@@ -230,10 +245,7 @@ AVX2 static void group_chunk(const pair_force *p, const pair_image *m, const gro
             if (rows && !rows[i])
                 continue;
             if (far) {
-                double a[3] = {0, 0, 0};
-                pair_row_forces(p, law, d, m, w, i, g->nb + g->nb_start[i], 0, g->nb_num[i], true, a);
-                for (int k = 0; k < d; k++)
-                    out[i * (size_t)d + (size_t)k] = a[k];
+                group_row_alone(p, m, w, i, out);
             } else {
                 for (int k = 0; k < d; k++)
                     out[i * (size_t)d + (size_t)k] = s[k][l];
@@ -291,12 +303,8 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     }
     /* the last n mod 4 rows, one at a time */
     for (size_t i = ng * GROUP; i < n; i++) {
-        if (rows && !rows[i])
-            continue;
-        double a[3] = {0, 0, 0};
-        pair_row_forces(p, p->law, p->dim, m, w, i, g->nb + g->nb_start[i], 0, g->nb_num[i], true, a);
-        for (int k = 0; k < p->dim; k++)
-            out[i * (size_t)p->dim + (size_t)k] = a[k];
+        if (!rows || rows[i])
+            group_row_alone(p, m, w, i, out);
     }
     return true;
 #else
