@@ -466,9 +466,9 @@ void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, u
 bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 
 /* ---- pair_group.c ---- */
-/** Whether grid forces of n particles may run four rows at a time here
- *  (a built-in law it supports, AVX2, PSYS_GROUP_OFF unset). */
-bool psys__pair_group_wanted(const pair_force *p, size_t n);
+/** Whether grid forces may run four rows at a time here (a built-in law it
+ *  supports, AVX2, PSYS_GROUP_OFF unset). */
+bool psys__pair_group_wanted(const pair_force *p);
 /** Copy the grid's full lists of n particles into groups of four rows.
  *  False if storage could not grow (then the row kernel runs). */
 bool psys__pair_group_build(pair_force *p, size_t n, int nt);

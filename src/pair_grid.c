@@ -657,7 +657,7 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     p->stats.pairs = half ? total : total / 2;
 
     g->tg_ok = false;
-    if (!half && psys__pair_group_wanted(p, n))
+    if (!half && psys__pair_group_wanted(p))
         psys__pair_group_build(p, n, ntf); /* if it cannot grow, the row kernel runs */
     memcpy(g->xref, x, n * (size_t)d * sizeof(double));
     g->box = *box;
