@@ -464,7 +464,7 @@ static bool transpose_lists(pair_grid *g, size_t n)
         g->nb_start2[i] = total;
         total += cnt[i];
     }
-    if (total > g->nb2_cap) {
+    if (total > g->nb2_cap || !g->nb2) { /* never NULL: rows index into it even when empty */
         size_t cap = total + total / 8 + 64;
         uint32_t *q = psys__realloc(g->nb2, cap, sizeof(uint32_t));
         if (!q)

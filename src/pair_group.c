@@ -81,7 +81,7 @@ bool psys__pair_group_build(pair_force *p, size_t n, int nt)
         g->tg_off[b + 1] = g->tg_off[b] + (size_t)hi * GROUP;
     }
     const size_t need = g->tg_off[ng];
-    if (need > g->tnb_cap) {
+    if (need > g->tnb_cap || !g->tnb) { /* never NULL: groups index into it even when empty */
         size_t cap = need + need / 8 + 64;
         uint32_t *q = psys__realloc(g->tnb, cap, sizeof *q);
         if (!q)
@@ -131,6 +131,7 @@ static void group_row_alone(const pair_force *p, const pair_image *m, const doub
 typedef struct group_consts {
     __m256d hl[3], ln[3], fr[3], sign;
     __m256d rc2, zero, one, two, sig2, lj24, kc, radius;
+    double inlo[3], inhi[3]; /* group_interior's bounds (±inf on free axes) */
 } group_consts;
 
 /* One axis: e = x_i - x_j, then the one-box minimum image of
@@ -161,10 +162,17 @@ AVX2 static inline __m256d group_kernel(const group_consts *c, const int law, __
     return _mm256_and_pd(g, in);
 }
 
-/* Rows 4b..4b+3 into acc (lane l: row 4b+l; d sums of 4). True if some
- * |x_i - x_j| reached 1.5 boxes (the caller recomputes the group exactly). */
-AVX2 static inline bool group_rows(const pair_grid *g, const group_consts *c, const int law, const int d,
-                                   const bool img, const double *X0, const double *X1, const double *X2,
+/* How group_rows treats x_i - x_j: as it is (no periodic axis); as it is,
+ * flagging any |x_i - x_j| above half a box on a periodic axis (then the
+ * minimum image would have changed something); or through the one-box
+ * minimum image, flagging |x_i - x_j| of 1.5 boxes or more. */
+enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE };
+
+/* Rows 4b..4b+3 into acc (lane l: row 4b+l; d sums of 4). True if a
+ * difference was flagged (see the modes): the caller computes the group
+ * again the next way up. */
+AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_grid *g, const group_consts *c, const int law, const int d,
+                                   const int mode, const double *X0, const double *X1, const double *X2,
                                    const double *Q, size_t b, __m256d acc[3])
 {
     const size_t i0 = b * GROUP;
@@ -188,11 +196,16 @@ AVX2 static inline bool group_rows(const pair_grid *g, const group_consts *c, co
         __m256d e2 = c->zero;
         if (d == 3)
             e2 = _mm256_sub_pd(xi2, _mm256_permute2f128_pd(u0, u2, 0x31));
-        if (img) {
+        if (mode == GROUP_IMAGE) {
             e0 = group_delta(c, 0, e0, &far);
             e1 = group_delta(c, 1, e1, &far);
             if (d == 3)
                 e2 = group_delta(c, 2, e2, &far);
+        } else if (mode == GROUP_CHECK) {
+            far = _mm256_or_pd(far, _mm256_cmp_pd(_mm256_andnot_pd(c->sign, e0), c->hl[0], _CMP_GT_OQ));
+            far = _mm256_or_pd(far, _mm256_cmp_pd(_mm256_andnot_pd(c->sign, e1), c->hl[1], _CMP_GT_OQ));
+            if (d == 3)
+                far = _mm256_or_pd(far, _mm256_cmp_pd(_mm256_andnot_pd(c->sign, e2), c->hl[2], _CMP_GT_OQ));
         }
         __m256d r2 = _mm256_add_pd(_mm256_mul_pd(e0, e0), _mm256_mul_pd(e1, e1));
         if (d == 3)
@@ -217,6 +230,44 @@ AVX2 static inline bool group_rows(const pair_grid *g, const group_consts *c, co
     return _mm256_movemask_pd(far) != 0;
 }
 
+/* group_rows with the law, dimension and mode as constants. */
+AVX2 static bool group_rows_as(const pair_grid *g, const group_consts *c, int law, int d, int mode,
+                               const double *X0, const double *X1, const double *X2, const double *Q, size_t b,
+                               __m256d acc[3])
+{
+#define GROUP_MODES(LAW, D)                                                                                  \
+    return mode == GROUP_PLAIN   ? group_rows(g, c, LAW, D, GROUP_PLAIN, X0, X1, X2, Q, b, acc)              \
+           : mode == GROUP_CHECK ? group_rows(g, c, LAW, D, GROUP_CHECK, X0, X1, X2, Q, b, acc)              \
+                                 : group_rows(g, c, LAW, D, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
+    if (law == PSYS_PAIR_LENNARD_JONES) {
+        if (d == 3) {
+            GROUP_MODES(PSYS_PAIR_LENNARD_JONES, 3)
+        }
+        GROUP_MODES(PSYS_PAIR_LENNARD_JONES, 2)
+    }
+    if (d == 3) {
+        GROUP_MODES(PSYS_PAIR_SOFT_REPULSION, 3)
+    }
+    GROUP_MODES(PSYS_PAIR_SOFT_REPULSION, 2)
+#undef GROUP_MODES
+}
+
+/* Whether rows i0..i0+3 lie at least the list radius plus twice the skin
+ * inside every periodic face: then their partners normally need no image
+ * (group_rows checks it). */
+static inline bool group_interior(const group_consts *c, int d, const double *X0, const double *X1,
+                                  const double *X2, size_t i0)
+{
+    const double *X[3] = {X0, X1, X2};
+    for (int k = 0; k < d; k++)
+        for (int l = 0; l < GROUP; l++) {
+            const double v = X[k][i0 + (size_t)l];
+            if (!(v >= c->inlo[k] && v <= c->inhi[k]))
+                return false;
+        }
+    return true;
+}
+
 AVX2 static void group_chunk(const pair_force *p, const pair_image *m, const group_consts *c, const double *w,
                              size_t b0, size_t b1, const unsigned char *rows, double *out)
 {
@@ -229,15 +280,12 @@ AVX2 static void group_chunk(const pair_force *p, const pair_image *m, const gro
         if (rows && !(rows[i0] | rows[i0 + 1] | rows[i0 + 2] | rows[i0 + 3]))
             continue;
         __m256d acc[3];
-        bool far;
-        /* the law and dimension as constants, so each variant is specialised */
-        if (law == PSYS_PAIR_LENNARD_JONES)
-            far = d == 3 ? (img ? group_rows(g, c, PSYS_PAIR_LENNARD_JONES, 3, true, X0, X1, X2, Q, b, acc)
-                                : group_rows(g, c, PSYS_PAIR_LENNARD_JONES, 3, false, X0, X1, X2, Q, b, acc))
-                         : group_rows(g, c, PSYS_PAIR_LENNARD_JONES, 2, img, X0, X1, X2, Q, b, acc);
-        else
-            far = d == 3 ? group_rows(g, c, PSYS_PAIR_SOFT_REPULSION, 3, img, X0, X1, X2, Q, b, acc)
-                         : group_rows(g, c, PSYS_PAIR_SOFT_REPULSION, 2, img, X0, X1, X2, Q, b, acc);
+        /* groups away from the periodic faces first without the image: only
+         * a flagged group pays for it */
+        int mode = !img ? GROUP_PLAIN : group_interior(c, d, X0, X1, X2, i0) ? GROUP_CHECK : GROUP_IMAGE;
+        bool far = group_rows_as(g, c, law, d, mode, X0, X1, X2, Q, b, acc);
+        if (far && mode == GROUP_CHECK)
+            far = group_rows_as(g, c, law, d, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
         double s[3][GROUP];
         for (int k = 0; k < d; k++)
             _mm256_storeu_pd(s[k], acc[k]);
@@ -265,6 +313,13 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
         c->fr[k] = _mm256_set1_pd(fr[k]);
     }
     c->sign = _mm256_set1_pd(-0.0);
+    const psys__box *box = &p->sys->box;
+    const double margin = sqrt(p->rlist2) + 2 * p->def.skin;
+    for (int k = 0; k < 3; k++) {
+        const bool per = m->on && m->per[k];
+        c->inlo[k] = per ? box->lo[k] + margin : -INFINITY;
+        c->inhi[k] = per ? box->hi[k] - margin : INFINITY;
+    }
     c->zero = _mm256_setzero_pd();
     c->one = _mm256_set1_pd(1.0);
     c->two = _mm256_set1_pd(2.0);
