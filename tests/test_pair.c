@@ -647,22 +647,27 @@ static void minimum_image_far(void)
 }
 
 /* The same with many particles, so the grid's four-rows-at-a-time kernel
- * (pair_group.c) meets a far partner inside a full group: that group is
- * computed again with the exact image, and grid still equals direct bit for
- * bit and the forces of the wrapped configuration to rounding. */
+ * (pair_group.c) meets a partner one or several boxes off inside full
+ * groups, both in a cluster across the faces (groups with the image) and in
+ * one in the middle of the box (groups first without it, flagged, then again
+ * with it): grid still equals direct bit for bit, and the forces are the
+ * wrapped configuration's to rounding. */
 static void minimum_image_far_groups(void)
 {
     for (int dim = 2; dim <= 3; dim++)
-        for (int shift = -3; shift <= 3; shift += 6) {
+        for (int v = 0; v < 8; v++) {
+            const int shifts[4] = {-3, -1, 1, 3};
+            const double centre = v < 4 ? 5.0 : 10.0;
+            const int shift = shifts[v % 4];
             psys_system *s[3];
             for (int c = 0; c < 3; c++) {
                 s[c] = boxed_10(dim);
                 rng_state = 17;
                 for (int i = 0; i < 24; i++) {
-                    double x[3] = {urand(9.0, 11.0), urand(4.0, 6.0), urand(4.0, 6.0)};
+                    double x[3] = {urand(centre - 1.0, centre + 1.0), urand(4.0, 6.0), urand(4.0, 6.0)};
                     x[0] -= x[0] >= 10 ? 10 : 0; /* wrapped into [0, 10) */
                     if (c < 2 && i == 9)
-                        x[0] += 10.0 * shift; /* particle 9 several boxes off */
+                        x[0] += 10.0 * shift; /* particle 9 one or three boxes off */
                     add(s[c], x, NULL, 1);
                 }
                 psys_pair_def def = image_lj(c == 1 ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID);
