@@ -69,6 +69,8 @@ typedef struct pair_grid {
     uint32_t *nb2;         /* nb2_cap: the lists being sorted by transposition (then swapped with nb) */
     size_t nb2_cap;
     size_t *nb_start2;     /* cap: its row starts */
+    uint32_t *tcnt;        /* tcnt_cap: the transposition's counts per part and list */
+    size_t tcnt_cap;
     size_t *chunk_off;     /* chunks_cap + 1: region of each chunk of particles in nb */
     size_t chunks_cap;
     double per_particle;   /* list entries per particle at the last build (region sizing) */

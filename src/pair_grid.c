@@ -47,6 +47,7 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->tnb);
     free(g->nb2);
     free(g->nb_start2);
+    free(g->tcnt);
     free(g->xq_mem);
     free(g->tg_off);
     free(g->tg_len);
@@ -449,20 +450,43 @@ void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, u
  * which can only touch pairs at the list radius, beyond the cutoff), so
  * walking the lists in increasing j and appending j to the list of each i
  * found there writes every list in increasing order, in O(pairs) and with no
- * comparisons. The result goes to nb2, which then becomes nb. */
-static bool transpose_lists(pair_grid *g, size_t n)
+ * comparisons. In parallel, each of `parts` threads walks its own range of
+ * j; a list receives the first range's entries first, so the order is the
+ * same. The result goes to nb2, which then becomes nb. */
+#define TRANSPOSE_PARTS_MAX 8
+static bool transpose_lists(pair_grid *g, size_t n, int nt)
 {
-    uint32_t *cnt = g->changed; /* scratch: the cache is invalid after a build */
-    memset(cnt, 0, n * sizeof *cnt);
-    for (size_t j = 0; j < n; j++) {
-        const uint32_t *js = g->nb + g->nb_start[j];
-        for (uint32_t q = 0; q < g->nb_num[j]; q++)
-            cnt[js[q]]++;
+    size_t parts = nt > 1 && n >= 4096 ? (size_t)nt : 1;
+    parts = parts > TRANSPOSE_PARTS_MAX ? TRANSPOSE_PARTS_MAX : parts;
+    if (parts * n > g->tcnt_cap) { /* per part: its entries per list, then their offsets in the list */
+        uint32_t *q = psys__realloc(g->tcnt, parts * n, sizeof(uint32_t));
+        if (!q)
+            return false;
+        g->tcnt = q;
+        g->tcnt_cap = parts * n;
+    }
+    uint32_t *cnt = g->tcnt, *newnum = g->changed; /* scratch: the cache is invalid after a build */
+    PSYS_OMP(omp parallel for schedule(static, 1) num_threads((int)parts) if (parts > 1))
+    for (size_t t = 0; t < parts; t++) {
+        uint32_t *c = cnt + t * n;
+        memset(c, 0, n * sizeof *c);
+        for (size_t j = n * t / parts; j < n * (t + 1) / parts; j++) {
+            const uint32_t *js = g->nb + g->nb_start[j];
+            for (uint32_t q = 0; q < g->nb_num[j]; q++)
+                c[js[q]]++;
+        }
     }
     size_t total = 0;
     for (size_t i = 0; i < n; i++) {
         g->nb_start2[i] = total;
-        total += cnt[i];
+        uint32_t in = 0;
+        for (size_t t = 0; t < parts; t++) {
+            uint32_t c = cnt[t * n + i];
+            cnt[t * n + i] = in;
+            in += c;
+        }
+        newnum[i] = in;
+        total += in;
     }
     if (total > g->nb2_cap || !g->nb2) { /* never NULL: rows index into it even when empty */
         size_t cap = total + total / 8 + 64;
@@ -472,15 +496,21 @@ static bool transpose_lists(pair_grid *g, size_t n)
         g->nb2 = q;
         g->nb2_cap = cap;
     }
-    for (size_t j = 0; j < n; j++) {
-        const uint32_t *js = g->nb + g->nb_start[j];
-        for (uint32_t q = 0; q < g->nb_num[j]; q++)
-            g->nb2[g->nb_start2[js[q]]++] = (uint32_t)j;
+    PSYS_OMP(omp parallel for schedule(static, 1) num_threads((int)parts) if (parts > 1))
+    for (size_t t = 0; t < parts; t++) {
+        uint32_t *off = cnt + t * n;
+        for (size_t j = n * t / parts; j < n * (t + 1) / parts; j++) {
+            const uint32_t *js = g->nb + g->nb_start[j];
+            for (uint32_t q = 0; q < g->nb_num[j]; q++) {
+                const uint32_t i = js[q];
+                g->nb2[g->nb_start2[i] + off[i]++] = (uint32_t)j;
+            }
+        }
     }
-    for (size_t i = 0; i < n; i++) {
-        g->nb_start[i] = g->nb_start2[i] - cnt[i];
-        g->nb_num[i] = cnt[i];
-    }
+    memcpy(g->nb_num, newnum, n * sizeof *newnum);
+    size_t *st = g->nb_start;
+    g->nb_start = g->nb_start2;
+    g->nb_start2 = st;
     uint32_t *t = g->nb;
     g->nb = g->nb2;
     g->nb2 = t;
@@ -645,7 +675,7 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
         if (exact)
             return false; /* cannot happen: the counts do not change */
     }
-    if (transpose && !transpose_lists(g, n))
+    if (transpose && !transpose_lists(g, n, ntf))
         return false;
     size_t total = 0, listed = 0;
     const unsigned char *own = p->sys->own_mark;

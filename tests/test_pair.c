@@ -843,15 +843,15 @@ static void box_validation(void)
 static psys_system *thread_case(int which)
 {
     rng_state = 777 + (uint64_t)which;
-    if (which == 0) { /* LJ in a periodic 3-D box, grid */
-        double len[3] = {6, 6, 6};
+    if (which == 0) { /* LJ in a periodic 3-D box, grid; 4,096 particles, so list builds run in parallel */
+        double len[3] = {12, 12, 12};
         psys_system *sys = make_system(3);
         double lo[3] = {0, 0, 0};
         bool per[3] = {true, true, true};
         CHECK(psys_system_set_box(sys, lo, len, per) == PSYS_OK);
-        for (int a = 0; a < 8; a++)
-            for (int b = 0; b < 8; b++)
-                for (int c = 0; c < 8; c++) {
+        for (int a = 0; a < 16; a++)
+            for (int b = 0; b < 16; b++)
+                for (int c = 0; c < 16; c++) {
                     double x[3] = {0.75 * a + urand(-0.05, 0.05), 0.75 * b + urand(-0.05, 0.05),
                                    0.75 * c + urand(-0.05, 0.05)};
                     double v[3] = {urand(-1, 1), urand(-1, 1), urand(-1, 1)};
