@@ -9,7 +9,11 @@
 # holds its slab's particles and ghosts) or MODE=replicated (every rank holds
 # every particle) is passed as --mpi MODE. LJ_CELLS (default 20: 32,000
 # atoms) sizes the strong-scaling melt; the weak one has about 8,000 atoms
-# per rank.
+# per rank. With LAMMPS=1 and Debian's lmp (built with Open MPI) on the
+# PATH, LAMMPS runs the same LJ cases right after psys's (lj/cut, the melt of
+# ../shared/peers/in.lj at the same sizes, neighbour lists checked every
+# step as psys does; its "Loop time" over 100 steps, start-up excluded), so
+# the two codes' scaling is measured on the same machine in the same run.
 set -euo pipefail
 PSYS=$(realpath "$1")
 MPIEXEC=${2:-mpiexec.mpich}
@@ -84,12 +88,40 @@ run_case() {
             name, (r > 1 ? mode : "serial"), n, r, s, t, t0 - s0 * ps, 1000 * ps, 1e6 * ps / n, c }'
 }
 
+# lammps_case NAME CELLS R: LAMMPS's LJ melt of 4·CELLS³ atoms on R ranks.
+PEERS=${PEERS:-$(dirname "$0")/../../shared/peers}
+lammps_case() {
+    local name=$1 cells=$2 r=$3 times=() t n
+    for _ in $(seq "$REPS"); do
+        (cd "$WORK" && OMP_NUM_THREADS=1 OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 \
+            mpiexec.openmpi --oversubscribe -n "$r" lmp -in in.lj.check -var x "$(awk -v c="$cells" 'BEGIN { print c / 20 }')" \
+            -var y "$(awk -v c="$cells" 'BEGIN { print c / 20 }')" -var z "$(awk -v c="$cells" 'BEGIN { print c / 20 }')" \
+            -log log.lammps -screen none >/dev/null 2>&1)
+        times+=("$(sed -n 's/^Loop time of \([0-9.]*\) on .*/\1/p' "$WORK/log.lammps")")
+    done
+    t=$(printf '%s\n' "${times[@]}" | sort -g | awk '{ a[NR] = $1 } END { print a[int((NR + 1) / 2)] }')
+    n=$(sed -n 's/^Loop time of .* with \([0-9]*\) atoms.*/\1/p' "$WORK/log.lammps")
+    awk -v name="$name" -v n="$n" -v r="$r" -v t="$t" -v c="$(nproc)" 'BEGIN {
+        printf "{\"case\":\"lammps-%s\",\"particles\":%d,\"ranks\":%d,\"steps\":100,\"loop_s\":%.3f,\"ms_per_step\":%.3f,\"us_per_particle_step\":%.3f,\"cores\":%d}\n",
+            name, n, r, t, 10 * t, 1e4 * t / n, c }'
+}
+with_lammps=0
+if [ "${LAMMPS:-0}" = 1 ] && command -v lmp >/dev/null 2>&1 && command -v mpiexec.openmpi >/dev/null 2>&1 \
+    && [ -f "$PEERS/in.lj" ]; then
+    with_lammps=1
+    sed 's/^neigh_modify.*/neigh_modify\tdelay 0 every 1 check yes/' "$PEERS/in.lj" >"$WORK/in.lj.check"
+fi
+
 lj_scene "$LJ_CELLS" "$WORK/ljs.json"
 ball_scene 2000 "$WORK/ball2000.json"
 for r in "${RANKS[@]}"; do run_case lj-strong "$WORK/ljs.json" "$r"; done
+if [ "$with_lammps" = 1 ]; then
+    for r in "${RANKS[@]}"; do lammps_case lj-strong "$LJ_CELLS" "$r"; done
+fi
 for r in "${RANKS[@]}"; do run_case gravity-strong "$WORK/ball2000.json" "$r"; done
 for r in "${RANKS[@]}"; do
     case $r in 1) c=13 ;; 2) c=16 ;; 4) c=20 ;; *) c=$(awk -v r="$r" 'BEGIN { printf "%d", (2000 * r) ^ (1/3) + 0.5 }') ;; esac
     lj_scene "$c" "$WORK/ljw$r.json"   # 8788, 16384, 32000 atoms: about 8,000 per rank
     run_case lj-weak "$WORK/ljw$r.json" "$r"
+    if [ "$with_lammps" = 1 ]; then lammps_case lj-weak "$c" "$r"; fi
 done
