@@ -85,14 +85,8 @@ typedef struct pair_grid {
     uint32_t *changed;         /* cap: particles whose position changed */
     bool cache_ok;
     size_t cache_n, cache_rebuilds;
-    /* the full lists again, by groups of four rows interleaved (pair_group.c) */
-    uint32_t *tnb;         /* tnb_cap entries */
-    double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0), xq 32-byte aligned in xq_mem */
-    size_t tnb_cap;
-    size_t *tg_off;        /* tg_cap + 1: where group b starts in tnb */
-    uint32_t *tg_len, *tg_min; /* tg_cap: longest and shortest list of the group */
-    size_t tg_cap, tg_n;   /* groups held; particles at the last copy */
-    bool tg_ok;            /* the copy matches the lists */
+    double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair_group.c,
+                              xq 32-byte aligned in xq_mem */
 } pair_grid;
 
 typedef struct pair_bh {
@@ -471,12 +465,9 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 /** Whether grid forces may run four rows at a time here (a built-in law it
  *  supports, AVX2, PSYS_GROUP_OFF unset). */
 bool psys__pair_group_wanted(const pair_force *p);
-/** Copy the grid's full lists of n particles into groups of four rows.
- *  False if storage could not grow (then the row kernel runs). */
-bool psys__pair_group_build(pair_force *p, size_t n, int nt);
 /** Grid forces of every row (or the marked ones) stored into out, four rows
- *  at a time: the same bits as pair_row_forces. False if the grouped lists
- *  are not available (nothing was written). */
+ *  at a time over the full lists: the same bits as pair_row_forces. False
+ *  if that path is not available here (nothing was written). */
 bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                              const unsigned char *rows, double *out, int nt);
 

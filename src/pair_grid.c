@@ -44,14 +44,10 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->xcache);
     free(g->mark);
     free(g->changed);
-    free(g->tnb);
     free(g->nb2);
     free(g->nb_start2);
     free(g->tcnt);
     free(g->xq_mem);
-    free(g->tg_off);
-    free(g->tg_len);
-    free(g->tg_min);
     memset(g, 0, sizeof *g);
 }
 
@@ -60,7 +56,6 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     void *q;
     g->built_n = 0; /* storage changes: rebuild at the next evaluation */
     g->cache_ok = false;
-    g->tg_ok = false;
 #define GROW(field, count, type)                            \
     if (!(q = psys__realloc(g->field, (count), sizeof(type)))) \
         return false;                                       \
@@ -686,9 +681,6 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     g->per_particle = (double)total / (double)(listed ? listed : 1);
     p->stats.pairs = half ? total : total / 2;
 
-    g->tg_ok = false;
-    if (!half && psys__pair_group_wanted(p))
-        psys__pair_group_build(p, n, ntf); /* if it cannot grow, the row kernel runs */
     memcpy(g->xref, x, n * (size_t)d * sizeof(double));
     g->box = *box;
     g->built_n = n;

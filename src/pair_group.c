@@ -17,9 +17,8 @@
  * computed again by pair_row_forces (the exact minimum image); so are the
  * last n mod 4 rows.
  *
- * Lists: psys__pair_group_build copies the grid's full lists into groups of
- * four, interleaved (entry k of the four lists side by side), the shorter
- * lists padded with their own particle. */
+ * Lists: the grid's full lists as they are, four read side by side; a lane
+ * whose list has ended takes its own particle as the partner (then masked). */
 #include "pair.h"
 
 #include <stdlib.h>
@@ -43,69 +42,6 @@ bool psys__pair_group_wanted(const pair_force *p)
     (void)p;
     return false;
 #endif
-}
-
-bool psys__pair_group_build(pair_force *p, size_t n, int nt)
-{
-    pair_grid *g = &p->grid;
-    const size_t ng = n / GROUP;
-    g->tg_ok = false;
-    if (ng == 0)
-        return false;
-    if (ng + 1 > g->tg_cap) {
-        size_t cap = ng + ng / 8 + 16;
-        size_t *off = psys__realloc(g->tg_off, cap + 1, sizeof *off);
-        if (!off)
-            return false;
-        g->tg_off = off;
-        uint32_t *len = psys__realloc(g->tg_len, cap, sizeof *len);
-        if (!len)
-            return false;
-        g->tg_len = len;
-        uint32_t *mn = psys__realloc(g->tg_min, cap, sizeof *mn);
-        if (!mn)
-            return false;
-        g->tg_min = mn;
-        g->tg_cap = cap;
-    }
-    g->tg_off[0] = 0;
-    for (size_t b = 0; b < ng; b++) {
-        uint32_t hi = 0, lo = UINT32_MAX;
-        for (int l = 0; l < GROUP; l++) {
-            uint32_t c = g->nb_num[b * GROUP + (size_t)l];
-            hi = c > hi ? c : hi;
-            lo = c < lo ? c : lo;
-        }
-        g->tg_len[b] = hi;
-        g->tg_min[b] = lo;
-        g->tg_off[b + 1] = g->tg_off[b] + (size_t)hi * GROUP;
-    }
-    const size_t need = g->tg_off[ng];
-    if (need > g->tnb_cap || !g->tnb) { /* never NULL: groups index into it even when empty */
-        size_t cap = need + need / 8 + 64;
-        uint32_t *q = psys__realloc(g->tnb, cap, sizeof *q);
-        if (!q)
-            return false;
-        g->tnb = q;
-        g->tnb_cap = cap;
-    }
-    (void)nt;
-    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1))
-    for (size_t b = 0; b < ng; b++) {
-        uint32_t *t = g->tnb + g->tg_off[b];
-        const uint32_t len = g->tg_len[b];
-        for (int l = 0; l < GROUP; l++) {
-            const size_t i = b * GROUP + (size_t)l;
-            const uint32_t *js = g->nb + g->nb_start[i], c = g->nb_num[i];
-            for (uint32_t k = 0; k < c; k++)
-                t[(size_t)k * GROUP + (size_t)l] = js[k];
-            for (uint32_t k = c; k < len; k++)
-                t[(size_t)k * GROUP + (size_t)l] = (uint32_t)i;
-        }
-    }
-    g->tg_n = n;
-    g->tg_ok = true;
-    return true;
 }
 
 #if defined(PSYS_GROUP_AVX2)
@@ -179,16 +115,28 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_gri
     const __m256d xi0 = _mm256_loadu_pd(X0 + i0), xi1 = _mm256_loadu_pd(X1 + i0);
     const __m256d xi2 = d == 3 ? _mm256_loadu_pd(X2 + i0) : c->zero;
     __m256d a0 = c->zero, a1 = c->zero, a2 = c->zero, far = c->zero;
-    const uint32_t *t = g->tnb + g->tg_off[b];
-    const uint32_t len = g->tg_len[b], full = g->tg_min[b];
+    const uint32_t *n = g->nb_num + i0;
+    const uint32_t *l0 = g->nb + g->nb_start[i0], *l1 = g->nb + g->nb_start[i0 + 1];
+    const uint32_t *l2 = g->nb + g->nb_start[i0 + 2], *l3 = g->nb + g->nb_start[i0 + 3];
+    const uint32_t lo01 = n[0] < n[1] ? n[0] : n[1], lo23 = n[2] < n[3] ? n[2] : n[3];
+    const uint32_t hi01 = n[0] > n[1] ? n[0] : n[1], hi23 = n[2] > n[3] ? n[2] : n[3];
+    const uint32_t full = lo01 < lo23 ? lo01 : lo23, len = hi01 > hi23 ? hi01 : hi23;
     (void)X2;
-    const __m128i num = _mm_loadu_si128((const __m128i *)(g->nb_num + i0));
+    const __m128i num = _mm_loadu_si128((const __m128i *)n);
     for (uint32_t k = 0; k < len; k++) {
+        size_t j0, j1, j2, j3;
+        if (k < full) {
+            j0 = l0[k], j1 = l1[k], j2 = l2[k], j3 = l3[k];
+        } else { /* a list that has ended: the particle itself, masked below */
+            j0 = k < n[0] ? l0[k] : i0;
+            j1 = k < n[1] ? l1[k] : i0 + 1;
+            j2 = k < n[2] ? l2[k] : i0 + 2;
+            j3 = k < n[3] ? l3[k] : i0 + 3;
+        }
         /* the four partners' records (x, y, z, 0), transposed: one load per
          * partner beats three gathers on the host measured (bench/README) */
-        const uint32_t *tk = t + (size_t)k * GROUP;
-        const __m256d p0 = _mm256_load_pd(Q + 4 * (size_t)tk[0]), p1 = _mm256_load_pd(Q + 4 * (size_t)tk[1]);
-        const __m256d p2 = _mm256_load_pd(Q + 4 * (size_t)tk[2]), p3 = _mm256_load_pd(Q + 4 * (size_t)tk[3]);
+        const __m256d p0 = _mm256_load_pd(Q + 4 * j0), p1 = _mm256_load_pd(Q + 4 * j1);
+        const __m256d p2 = _mm256_load_pd(Q + 4 * j2), p3 = _mm256_load_pd(Q + 4 * j3);
         const __m256d u0 = _mm256_unpacklo_pd(p0, p1), u1 = _mm256_unpackhi_pd(p0, p1);
         const __m256d u2 = _mm256_unpacklo_pd(p2, p3), u3 = _mm256_unpackhi_pd(p2, p3);
         __m256d e0 = _mm256_sub_pd(xi0, _mm256_permute2f128_pd(u0, u2, 0x20));
@@ -336,7 +284,7 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
 {
 #if defined(PSYS_GROUP_AVX2)
     const pair_grid *g = &p->grid;
-    if (!g->tg_ok || g->tg_n != n || !psys__pair_group_wanted(p) || !pair_can_vectorise(p, w, n))
+    if (g->half || g->built_n != n || !psys__pair_group_wanted(p) || !pair_can_vectorise(p, w, n))
         return false;
     group_consts c;
     group_consts_of(p, m, &c);
