@@ -107,9 +107,11 @@ enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE };
 /* Rows 4b..4b+3 into acc (lane l: row 4b+l; d sums of 4). True if a
  * difference was flagged (see the modes): the caller computes the group
  * again the next way up. */
-AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_grid *g, const group_consts *c, const int law, const int d,
-                                   const int mode, const double *X0, const double *X1, const double *X2,
-                                   const double *Q, size_t b, __m256d acc[3])
+AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_grid *g, const group_consts *c,
+                                                                  const int law, const int d, const int mode,
+                                                                  const double *X0, const double *X1,
+                                                                  const double *X2, const double *Q, size_t b,
+                                                                  __m256d acc[3])
 {
     const size_t i0 = b * GROUP;
     const __m256d xi0 = _mm256_loadu_pd(X0 + i0), xi1 = _mm256_loadu_pd(X1 + i0);
@@ -121,7 +123,6 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_gri
     const uint32_t lo01 = n[0] < n[1] ? n[0] : n[1], lo23 = n[2] < n[3] ? n[2] : n[3];
     const uint32_t hi01 = n[0] > n[1] ? n[0] : n[1], hi23 = n[2] > n[3] ? n[2] : n[3];
     const uint32_t full = lo01 < lo23 ? lo01 : lo23, len = hi01 > hi23 ? hi01 : hi23;
-    (void)X2;
     const __m128i num = _mm_loadu_si128((const __m128i *)n);
     for (uint32_t k = 0; k < len; k++) {
         size_t j0, j1, j2, j3;
