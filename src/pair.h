@@ -82,7 +82,7 @@ typedef struct pair_grid {
      * evaluation and the positions they were computed at */
     double *fcache, *xcache;   /* cap·dim each */
     unsigned char *mark;       /* cap: particles to recompute (all 0 between evaluations) */
-    uint32_t *changed;         /* cap: particles whose position changed */
+    uint32_t *changed;         /* cap: particles whose position changed (between builds; a build uses it as scratch) */
     bool cache_ok;
     size_t cache_n, cache_rebuilds;
     double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair_group.c,
