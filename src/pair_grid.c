@@ -440,6 +440,22 @@ void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, u
             }
 }
 
+/* A list array for at least `need` entries (never NULL: rows index into it
+ * even when every list is empty); it grows by an eighth beyond the need, and
+ * is left as it was if it cannot. */
+static bool grow_lists(uint32_t **a, size_t *cap, size_t need)
+{
+    if (need <= *cap && *a)
+        return true;
+    size_t c = need + need / 8 + 64;
+    uint32_t *q = psys__realloc(*a, c, sizeof(uint32_t));
+    if (!q)
+        return false;
+    *a = q;
+    *cap = c;
+    return true;
+}
+
 /* Sort full lists by transposing them: j is in i's list exactly when i is in
  * j's (the scan's test is symmetric up to the rounding of periodic images,
  * which can only touch pairs at the list radius, beyond the cutoff), so
@@ -483,14 +499,8 @@ static bool transpose_lists(pair_grid *g, size_t n, int nt)
         newnum[i] = in;
         total += in;
     }
-    if (total > g->nb2_cap || !g->nb2) { /* never NULL: rows index into it even when empty */
-        size_t cap = total + total / 8 + 64;
-        uint32_t *q = psys__realloc(g->nb2, cap, sizeof(uint32_t));
-        if (!q)
-            return false;
-        g->nb2 = q;
-        g->nb2_cap = cap;
-    }
+    if (!grow_lists(&g->nb2, &g->nb2_cap, total))
+        return false;
     PSYS_OMP(omp parallel for schedule(static, 1) num_threads((int)parts) if (parts > 1))
     for (size_t t = 0; t < parts; t++) {
         uint32_t *off = cnt + t * n;
@@ -652,15 +662,8 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
                 len = (size_t)(per * (double)(i1 - i0)) + 16;
             g->chunk_off[c + 1] = g->chunk_off[c] + len;
         }
-        size_t need = g->chunk_off[nchunks];
-        if (need > g->nb_cap) {
-            size_t cap = need + need / 8 + 64;
-            uint32_t *q = psys__realloc(g->nb, cap, sizeof(uint32_t));
-            if (!q)
-                return false;
-            g->nb = q;
-            g->nb_cap = cap;
-        }
+        if (!grow_lists(&g->nb, &g->nb_cap, g->chunk_off[nchunks]))
+            return false;
         bool ok = half ? (d == 2 ? fill_2h(p, &sc, m, x, n, nchunks, rls2, ntf, true)
                                  : fill_3h(p, &sc, m, x, n, nchunks, rls2, ntf, true))
                        : (d == 2 ? fill_2(p, &sc, m, x, n, nchunks, rls2, ntf, !transpose)
