@@ -299,10 +299,13 @@ VEC_VARIANTS(ROWS_FN, rows)
 static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 #define ROWS_CHUNK 64
 
-/* Grid forces over full lists through rows_fns, in parallel by chunks of rows. */
+/* Grid forces over full lists: four rows at a time where that runs
+ * (pair_group.c), else through rows_fns, in parallel by chunks of rows. */
 static void grid_rows(const pair_force *p, const pair_image *m, const double *w, size_t n,
                       const unsigned char *mark, double *out, int nt)
 {
+    if (psys__pair_group_forces(p, m, w, n, mark, out, nt))
+        return;
     const rows_fn fn = rows_fns[p->law][p->dim == 3];
     const size_t nchunks = (n + ROWS_CHUNK - 1) / ROWS_CHUNK;
     (void)nt;
@@ -478,8 +481,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
          * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
             pair_soa_positions(p, x, n, nt);
-            if (!psys__pair_group_forces(p, m, x, w, n, own, g->fcache, nt))
-                grid_rows(p, m, w, n, own, g->fcache, nt);
+            grid_rows(p, m, w, n, own, g->fcache, nt);
         } else {
             fn(p, m, x, w, n, own, g->fcache, nt);
         }
@@ -539,8 +541,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
                 memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
     if (compute && !g->half && pair_can_vectorise(p, w, n)) {
         pair_soa_positions(p, x, n, nt);
-        if (!psys__pair_group_forces(p, m, x, w, n, rows, g->fcache, nt))
-            grid_rows(p, m, w, n, rows, g->fcache, nt);
+        grid_rows(p, m, w, n, rows, g->fcache, nt);
     }
     else if (compute)
         fn(p, m, x, w, n, rows, g->fcache, nt);

@@ -462,13 +462,11 @@ void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, u
 bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 
 /* ---- pair_group.c ---- */
-/** Whether grid forces may run four rows at a time here (a built-in law it
- *  supports, AVX2, PSYS_GROUP_OFF unset). */
-bool psys__pair_group_wanted(const pair_force *p);
-/** Grid forces of every row (or the marked ones) stored into out, four rows
- *  at a time over the full lists: the same bits as pair_row_forces. False
- *  if that path is not available here (nothing was written). */
-bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+/** Grid forces over the full lists of every row (or the marked ones) stored
+ *  into out, four rows at a time, from the positions in p->xsoa: the same
+ *  bits as pair_row_forces. False if that path does not run here (a law it
+ *  does not support, no AVX2, PSYS_GROUP_OFF set); nothing was written. */
+bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *w, size_t n,
                              const unsigned char *rows, double *out, int nt);
 
 /* ---- pair_bh.c ---- */

@@ -22,7 +22,6 @@
 #include "pair.h"
 
 #include <stdlib.h>
-#include <string.h>
 
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__)
 #define PSYS_GROUP_AVX2 1
@@ -31,21 +30,16 @@
 #define GROUP 4
 #define GROUP_CHUNK 16 /* groups per parallel task */
 
-bool psys__pair_group_wanted(const pair_force *p)
-{
 #if defined(PSYS_GROUP_AVX2)
+#include <immintrin.h>
+
+static bool group_wanted(const pair_force *p)
+{
     /* PSYS_GROUP_OFF in the environment forces the row kernel, so the tests
      * cover both paths on any machine */
     return (p->law == PSYS_PAIR_LENNARD_JONES || p->law == PSYS_PAIR_SOFT_REPULSION)
            && __builtin_cpu_supports("avx2") && !getenv("PSYS_GROUP_OFF");
-#else
-    (void)p;
-    return false;
-#endif
 }
-
-#if defined(PSYS_GROUP_AVX2)
-#include <immintrin.h>
 
 /* Row i through pair_row_forces (the exact minimum image), stored into out;
  * the law as a constant, as the group loop supports it. */
@@ -280,24 +274,25 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
 }
 #endif
 
-bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *w, size_t n,
                              const unsigned char *rows, double *out, int nt)
 {
 #if defined(PSYS_GROUP_AVX2)
     const pair_grid *g = &p->grid;
-    if (g->half || g->built_n != n || !psys__pair_group_wanted(p) || !pair_can_vectorise(p, w, n))
+    if (!group_wanted(p))
         return false;
     group_consts c;
     group_consts_of(p, m, &c);
     const size_t ng = n / GROUP, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
-    const int d = p->dim;
+    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
+    const bool three = p->dim == 3;
     double *Q = g->xq;
     (void)nt;
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN))
     for (size_t i = 0; i < n; i++) {
-        Q[4 * i] = x[i * (size_t)d];
-        Q[4 * i + 1] = x[i * (size_t)d + 1];
-        Q[4 * i + 2] = d == 3 ? x[i * (size_t)d + 2] : 0.0;
+        Q[4 * i] = X0[i];
+        Q[4 * i + 1] = X1[i];
+        Q[4 * i + 2] = three ? X2[i] : 0.0;
         Q[4 * i + 3] = 0.0;
     }
     PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
@@ -314,7 +309,6 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
 #else
     (void)p;
     (void)m;
-    (void)x;
     (void)w;
     (void)n;
     (void)rows;
