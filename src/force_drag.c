@@ -71,4 +71,18 @@ static psys_status drag_save(const psys_system *sys, const void *data, cJSON *ar
     return PSYS_OK;
 }
 
-const psys__force_io psys__drag_io = {"drag", &psys_drag_class, drag_parse, drag_save};
+/* drag_apply for particles in component rows (the fused derivative). */
+static void drag_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                      double *const *F)
+{
+    (void)mass;
+    const double kd = ((const drag *)data)->kd;
+    for (int c = 0; c < dim; c++) {
+        const double *restrict v = V[c];
+        double *restrict fc = F[c];
+        for (size_t j = 0; j < count; j++)
+            fc[j] -= kd * v[j];
+    }
+}
+
+const psys__force_io psys__drag_io = {.type = "drag", .cls = &psys_drag_class, .parse = drag_parse, .save = drag_save, .apply_rows = drag_rows};

@@ -97,4 +97,19 @@ static psys_status gravity_save(const psys_system *sys, const void *data, cJSON 
     return PSYS_OK;
 }
 
-const psys__force_io psys__gravity_io = {"gravity", &psys_gravity_class, gravity_parse, gravity_save};
+/* gravity_apply for particles in component rows (the fused derivative). */
+static void gravity_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                         double *const *F)
+{
+    (void)V;
+    const gravity *gr = data;
+    for (int c = 0; c < dim; c++) {
+        const double gc = gr->g[c];
+        const double *restrict m = mass;
+        double *restrict fc = F[c];
+        for (size_t j = 0; j < count; j++)
+            fc[j] += m[j] * gc;
+    }
+}
+
+const psys__force_io psys__gravity_io = {.type = "gravity", .cls = &psys_gravity_class, .parse = gravity_parse, .save = gravity_save, .apply_rows = gravity_rows};

@@ -226,4 +226,4 @@ static psys_status mouse_save(const psys_system *sys, const void *data, cJSON *a
     return PSYS_OK;
 }
 
-const psys__force_io psys__mouse_io = {"mouse-spring", &psys_mouse_spring_class, mouse_parse, mouse_save};
+const psys__force_io psys__mouse_io = {.type = "mouse-spring", .cls = &psys_mouse_spring_class, .parse = mouse_parse, .save = mouse_save};

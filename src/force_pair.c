@@ -1076,4 +1076,4 @@ static psys_status pair_save(const psys_system *sys, const void *data, cJSON *ar
     return PSYS_OK;
 }
 
-const psys__force_io psys__pair_io = {"pair", &psys_pair_class, pair_parse, pair_save};
+const psys__force_io psys__pair_io = {.type = "pair", .cls = &psys_pair_class, .parse = pair_parse, .save = pair_save};

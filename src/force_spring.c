@@ -2,7 +2,7 @@
  * force object stored as arrays so the loop streams through memory:
  *   l = a - b,  f_a = -[ks(|l| - r) + kd (l̇·l)/|l|] l/|l|,  f_b = -f_a.
  * A spring of zero current length has no direction and exerts no force. */
-#include "internal.h"
+#include "springs.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -14,57 +14,6 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-
-/* Muscles (Miller's snakes and worms): spring k with a muscle has rest
- * length r(t) = rest[k]·(1 + amp·sin(omega·t + phase)) at evaluation time t.
- * Muscle arrays stay NULL until the first muscle exists, so a set without
- * muscles runs the plain loop on rest[] with no extra work. */
-#define NO_MUSCLE UINT32_MAX
-
-/* Spring loop blocking and threading (springs_apply). */
-#define SPRING_BLOCK 256          /* longest run: its force scratch (6 KiB) stays in L1 */
-#define SPRING_MAX_THREADS 64     /* more threads than this share 64 partitions */
-#define SPRING_PARALLEL_MIN 20000 /* fewer springs than this run on one thread */
-
-typedef struct springs {
-    size_t n, cap;
-    uint32_t *a, *b;
-    double *ks, *kd, *rest;
-    uint32_t *mslot;  /* cap entries once a muscle exists: muscle slot of spring k or NO_MUSCLE */
-    double *rest_t;   /* cap entries once a muscle exists: rest length at the latest evaluation
-                         time (equal to rest[k] for springs without a muscle) */
-    size_t nm, mcap;  /* muscles, compact: spring, amplitude, omega, phase */
-    uint32_t *midx;
-    double *mamp, *momega, *mphase;
-    const psys_system *owner; /* for its particle count (the SoA scratch) */
-    unsigned version;         /* changes with every change of the spring set */
-    /* The evaluation plan (springs_plan): springs regrouped into runs of
-     * equal index offset and consecutive first particles, so that the force
-     * loop reads and writes particles in contiguous blocks and vectorises.
-     * Spring indices users see stay those of the arrays above. */
-    bool plan_ok;
-    unsigned plan_version;
-    size_t nruns;
-    uint32_t *run_lo, *run_off, *run_len; /* run r: springs (lo + j, lo + off + j), j < len */
-    size_t *run_k;                        /* first plan slot of run r */
-    double *pks, *pkd, *prest;            /* parameters in plan order */
-    size_t *pos;                          /* plan slot of spring k */
-    /* Thread partition (springs_partition): thread t owns the particles
-     * [P_t, P_t+1), P_t = ceil(t·np/T), and walks runs [rlo[t], rhi[t]),
-     * every run touching a particle it owns. Recomputed when the plan, the
-     * particle count or T changes; no allocation. */
-    unsigned part_version;
-    size_t part_np;
-    int part_t;   /* T of the cached partition, 0 = none */
-    bool part_ok; /* false: the ranges overlap too much to pay, run serially */
-    size_t rlo[SPRING_MAX_THREADS], rhi[SPRING_MAX_THREADS];
-    /* Structure-of-arrays copies of x, v and f (springs_apply): component c
-     * of particle i at soa[(q·dim + c)·soa_cap + i], q = 0 x, 1 v, 2 f, so
-     * the run loop reads and writes whole vectors with no shuffles. Sized at
-     * psys__springs_prepare for the owner's particle count. */
-    double *soa;
-    size_t soa_cap;
-} springs;
 
 static void plan_free(springs *s)
 {
@@ -101,6 +50,7 @@ static void springs_destroy(void *data)
     free(s->mphase);
     plan_free(s);
     free(s->soa);
+    free(s->ring);
     free(s);
 }
 
@@ -284,39 +234,6 @@ void psys__springs_truncate(void *set, size_t n)
  * thread count. A spring with a > b is the same spring seen from b: l and
  * l̇ change sign, l·l̇ and |l| do not, so its force is the same to the bit. */
 
-/* Forces of run springs j < len into F (component-major: F[c·SPRING_BLOCK + j]):
- *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
- * X, V: the SoA position and velocity components (stride cap), lo and hi
- * the runs' first particles at the two ends.
- * A spring of zero length has no direction and exerts no force. */
-static inline void run_forces_d(const double *restrict X, const double *restrict V, size_t cap, size_t lo,
-                                size_t hi, const double *restrict ks, const double *restrict kd,
-                                const double *restrict rest, size_t len, double *restrict F, const int d)
-{
-    const double *restrict xa0 = X + lo, *restrict xb0 = X + hi, *restrict va0 = V + lo, *restrict vb0 = V + hi;
-    const double *restrict xa1 = X + cap + lo, *restrict xb1 = X + cap + hi;
-    const double *restrict va1 = V + cap + lo, *restrict vb1 = V + cap + hi;
-    const double *restrict xa2 = X + 2 * cap + lo, *restrict xb2 = X + 2 * cap + hi;
-    const double *restrict va2 = V + 2 * cap + lo, *restrict vb2 = V + 2 * cap + hi;
-    double *restrict F0 = F, *restrict F1 = F + SPRING_BLOCK, *restrict F2 = F + 2 * SPRING_BLOCK;
-    for (size_t j = 0; j < len; j++) {
-        double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j];
-        double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j];
-        double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1, l2 = 0;
-        if (d == 3) {
-            l2 = xa2[j] - xb2[j];
-            double d2 = va2[j] - vb2[j];
-            len2 = len2 + l2 * l2;
-            dot = dot + d2 * l2;
-        }
-        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
-        F0[j] = mag * l0;
-        F1[j] = mag * l1;
-        if (d == 3)
-            F2[j] = mag * l2;
-    }
-}
-
 /* Runs r0..r1-1 into the SoA forces Fs; with `owned`, only the ends in
  * particles [P, Q). Per particle and component the contributions arrive in
  * plan order: run by run, in a run the first end before the second. */
@@ -352,15 +269,6 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
     }
 }
 
-/* On x86-64 with GCC, also AVX2 and AVX-512 builds of the loop, chosen at
- * load time by what the CPU has (4 or 8 doubles per instruction instead of
- * 2). The same operations in the same order (no FMA: -ffp-contract=off;
- * sqrt and division are correctly rounded at every width), so the same bits. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define SPRING_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#else
-#define SPRING_CLONES
-#endif
 SPRING_CLONES
 static void springs_runs(const springs *s, int dim, double *Fs, size_t r0, size_t r1, size_t P, size_t Q, bool owned)
 {
@@ -503,6 +411,8 @@ static psys_status springs_plan(springs *s)
             nr++;
         }
         p.run_len[nr - 1]++;
+        if (off > p.max_off)
+            p.max_off = off;
         p.pks[i] = s->ks[k];
         p.pkd[i] = s->kd[k];
         p.prest[i] = s->rest[k];
@@ -519,6 +429,7 @@ static psys_status springs_plan(springs *s)
     s->prest = p.prest;
     s->pos = p.pos;
     s->nruns = nr;
+    s->max_off = p.max_off;
     s->plan_ok = true;
     s->plan_version = s->version;
     s->part_t = 0;
@@ -526,6 +437,37 @@ static psys_status springs_plan(springs *s)
 }
 
 /* The plan, and SoA scratch for the owner's particles (9 doubles each). */
+const double *psys__springs_rest_now(springs *s, double t) { return rest_at(s, t); }
+
+psys_status psys__springs_prepare_fused(springs *s, size_t np, int *T)
+{
+    psys_status st = springs_plan(s);
+    if (st != PSYS_OK)
+        return st;
+    if (*T > 1) {
+        psys__springs_partition(s, np, *T);
+        if (!s->part_ok)
+            *T = 1;
+    }
+    /* A window holds a block of first particles, its runs' length and the
+     * largest offset (see spring_fused.c); never more than all particles. */
+    size_t need = s->max_off + 2 * SPRING_BLOCK, W = 1;
+    while (W < need && W < np)
+        W *= 2;
+    if (W > s->ring_w || *T > s->ring_t) {
+        size_t w = W > s->ring_w ? W : s->ring_w;
+        int t = *T > s->ring_t ? *T : s->ring_t;
+        double *ring = psys__calloc((size_t)t * 9, psys__springs_ring_stride(w) * sizeof(double));
+        if (!ring)
+            return PSYS_ERR_NOMEM;
+        free(s->ring);
+        s->ring = ring;
+        s->ring_w = w;
+        s->ring_t = t;
+    }
+    return PSYS_OK;
+}
+
 psys_status psys__springs_prepare(void *set)
 {
     springs *s = set;
@@ -592,16 +534,13 @@ psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *
     return PSYS_OK;
 }
 
-/* First particle of thread t's share of np particles among T. */
-static size_t part_first(size_t np, int T, int t) { return (size_t)(((uint64_t)t * np + (uint64_t)T - 1) / (uint64_t)T); }
-
-/* Thread owning particle p (p >= part_first(np, T, t) exactly when t <= this). */
+/* Thread owning particle p (p >= psys__part_first(np, T, t) exactly when t <= this). */
 static int part_owner(size_t p, size_t np, int T) { return (int)((uint64_t)p * (uint64_t)T / (uint64_t)np); }
 
 /* Thread t walks the runs rlo[t]..rhi[t]-1: all the runs with an end in its
  * share of the particles. Each particle's force is written by its owner
  * only, with its contributions in plan order: results do not depend on T. */
-static void springs_partition(springs *s, size_t np, int T)
+void psys__springs_partition(springs *s, size_t np, int T)
 {
     if (s->part_t == T && s->part_version == s->plan_version && s->part_np == np)
         return;
@@ -654,7 +593,7 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
         s->prest[s->pos[s->midx[m]]] = rest[s->midx[m]];
     int T = springs_threads(s, e);
     if (T > 1 && e->n > 0) {
-        springs_partition(s, e->n, T);
+        psys__springs_partition(s, e->n, T);
         if (!s->part_ok)
             T = 1;
     }
@@ -672,10 +611,10 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
     {
         int nth = omp_get_num_threads(), me = omp_get_thread_num();
         for (int t = me; t < T; t += nth)
-            soa_gather(s, e, f, part_first(e->n, T, t), part_first(e->n, T, t + 1));
+            soa_gather(s, e, f, psys__part_first(e->n, T, t), psys__part_first(e->n, T, t + 1));
 #pragma omp barrier
         for (int t = me; t < T; t += nth) {
-            size_t P = part_first(e->n, T, t), Q = part_first(e->n, T, t + 1);
+            size_t P = psys__part_first(e->n, T, t), Q = psys__part_first(e->n, T, t + 1);
             springs_runs(s, e->dim, Fs, s->rlo[t], s->rhi[t], P, Q, true);
             soa_scatter(s, e->dim, f, P, Q);
         }
@@ -867,4 +806,4 @@ static psys_status spring_save(const psys_system *sys, const void *data, cJSON *
     return PSYS_OK;
 }
 
-const psys__force_io psys__spring_io = {"spring", &psys_spring_class, spring_parse, spring_save};
+const psys__force_io psys__spring_io = {.type = "spring", .cls = &psys_spring_class, .parse = spring_parse, .save = spring_save};

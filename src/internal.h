@@ -237,6 +237,11 @@ void psys__springs_truncate(void *set, size_t n);
 /** Build the spring set's evaluation plan if the set changed (allocates;
  *  PSYS_ERR_NOMEM on failure). Called before evaluating forces. */
 psys_status psys__springs_prepare(void *set);
+/** The derivative [v | f/m] of sys at (e->t, y) in one pass over memory when
+ *  its forces are springs and per-particle forces only (spring_fused.c):
+ *  *used tells whether it did; the same bits as the generic path. */
+psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,
+                                   bool *used);
 
 /** The order in which each particle's force receives its spring forces
  *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists
@@ -278,6 +283,11 @@ typedef struct psys__force_io {
     psys_status (*parse)(psys__parse *p, const struct cJSON *obj, const char *path);
     /** Append JSON objects describing force object data to the array arr. */
     psys_status (*save)(const psys_system *sys, const void *data, struct cJSON *arr);
+    /** Optional, for forces on each particle alone: cls->apply's operations
+     *  for `count` consecutive particles with masses mass[j], velocities
+     *  V[c][j] and forces F[c][j] in component rows (the fused derivative). */
+    void (*apply_rows)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                       double *const *F);
 } psys__force_io;
 
 extern const psys__force_io psys__gravity_io;

@@ -477,6 +477,11 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     size_t d = (size_t)s->dim, nd = s->n * d;
     psys_force_eval e;
     psys__sys_eval(s, t, y, y + nd, &e);
+    bool fused = false;
+    if (psys__fused_derivative(s, &e, y, ydot, &fused) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
+    if (fused)
+        return PSYS_OK;
     if (s->springs && psys__springs_prepare(s->springs) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     if (accumulate(s, &e, s->f) != PSYS_OK)

@@ -1,0 +1,294 @@
+/* The derivative [v | f/m] of a system whose forces are its springs and
+ * per-particle forces (gravity, drag: psys__force_io.apply_rows), in one
+ * pass over memory instead of one per force object plus copies.
+ *
+ * The generic derivative clears f, lets each force object sweep it, copies
+ * x, v and f into component arrays for the spring runs and back, copies v
+ * and forms f/m: about ten sweeps over arrays that at 10⁶ particles live in
+ * main memory. Here a window of ring_w consecutive particles slides along
+ * the plan (force_spring.c): particles enter it (x, v into component rows,
+ * f = 0 plus the forces listed before the springs), the runs of each block
+ * of 256 first particles add their spring forces, and particles that no
+ * later run touches leave it (forces listed after the springs, then v and
+ * f/m into ydot). The window stays in cache; y is read once, ydot written
+ * once.
+ *
+ * Same bits as the generic path: every particle's force sees the same
+ * operations in the same order (0, the forces before the springs in list
+ * order, its springs in plan order with a run's first ends before its
+ * second ends, the forces after), and f/m is the same expression. Threads
+ * own particle ranges and walk the runs touching them (the spring loop's
+ * partition), each with its own window, so results do not depend on the
+ * thread count either. */
+#include "springs.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define FUSED_MAX_ROWS 8 /* per-particle forces before and after the springs */
+
+/* Into each clone of fused_part (SPRING_CLONES), so the loops get its
+ * instruction set. */
+#if defined(__GNUC__)
+#define FUSED_INLINE __attribute__((always_inline)) inline
+#else
+#define FUSED_INLINE inline
+#endif
+
+typedef void (*rows_fn)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                        double *const *F);
+
+typedef struct rowforce {
+    rows_fn fn;
+    const void *data;
+} rowforce;
+
+typedef struct fused {
+    const springs *s;
+    size_t n, W, mask, S; /* ring slots (a power of 2) and row stride */
+    const double *x, *v, *mass, *inv_mass; /* particle-major x, v (y's halves) */
+    double *xdot, *vdot;                   /* ydot's halves */
+    rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
+    int npre, npost;
+} fused;
+
+/* The row kernel of force class cls, or NULL. */
+static rows_fn rows_of(const psys_force_class *cls)
+{
+    for (const psys__force_io *const *io = psys__force_types; *io; io++)
+        if ((*io)->cls == cls)
+            return (*io)->apply_rows;
+    return NULL;
+}
+
+/* Below this many particles the generic path is faster here: its state
+ * stays in cache between its passes, while the window's traffic (y in,
+ * ydot out) evicts the spring runs' working set from L1 (measured on a
+ * 2-vCPU AMD EPYC: cloth 100² 0.85×, 256² about 1×, 1024² 1.3-1.5×; see
+ * bench/README.md). PSYS_FUSED=1 or 0 forces the choice (tests, benchmarks). */
+#define FUSED_MIN_PARTICLES 131072
+
+/* Whether the fused path computes s's derivative: springs, and otherwise
+ * only forces with row kernels (at most FUSED_MAX_ROWS on each side of the
+ * springs); no planes (their contact forces need the total force first), no
+ * MPI decomposition. */
+static bool eligible(const psys_system *s, fused *fz)
+{
+    if (!s->springs || psys__springs_count(s->springs) == 0 || s->nplanes || s->dist || s->own_mark || s->n == 0)
+        return false;
+    const char *force = getenv("PSYS_FUSED");
+    if (force && force[0] == '0')
+        return false;
+    if (!(force && force[0] == '1') && s->n < FUSED_MIN_PARTICLES)
+        return false;
+    bool after = false;
+    fz->npre = fz->npost = 0;
+    for (size_t i = 0; i < s->nforces; i++) {
+        if (s->forces[i].data == s->springs) {
+            after = true;
+            continue;
+        }
+        rows_fn fn = rows_of(s->forces[i].cls);
+        int *cnt = after ? &fz->npost : &fz->npre;
+        if (!fn || *cnt == FUSED_MAX_ROWS)
+            return false;
+        rowforce *slot = after ? &fz->post[*cnt] : &fz->pre[*cnt];
+        slot->fn = fn;
+        slot->data = s->forces[i].data;
+        ++*cnt;
+    }
+    return after;
+}
+
+/* Pointers to component rows q (0 x, 1 v, 2 f) of ring slot i0. */
+static inline void rows_at(double *rb, size_t S, int q, int d, size_t i0, double *out[3])
+{
+    for (int c = 0; c < 3; c++)
+        out[c] = c < d ? rb + (size_t)(q * d + c) * S + i0 : NULL;
+}
+
+/* Particles [a, a + cnt) enter the window (one contiguous piece of it). */
+static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    const size_t i0 = a & fz->mask;
+    double *X[3], *V[3], *F[3];
+    rows_at(rb, fz->S, 0, d, i0, X);
+    rows_at(rb, fz->S, 1, d, i0, V);
+    rows_at(rb, fz->S, 2, d, i0, F);
+    const double *src[2] = {fz->x + a * (size_t)d, fz->v + a * (size_t)d};
+    double *const *dst[2] = {X, V};
+    for (int q = 0; q < 2; q++) {
+        const double *restrict p = src[q];
+        double *restrict c0 = dst[q][0], *restrict c1 = dst[q][1], *restrict c2 = dst[q][2];
+        if (d == 2) {
+            for (size_t j = 0; j < cnt; j++) {
+                c0[j] = p[2 * j];
+                c1[j] = p[2 * j + 1];
+            }
+        } else {
+            for (size_t j = 0; j < cnt; j++) {
+                c0[j] = p[3 * j];
+                c1[j] = p[3 * j + 1];
+                c2[j] = p[3 * j + 2];
+            }
+        }
+    }
+    for (int c = 0; c < d; c++)
+        memset(F[c], 0, cnt * sizeof(double)); /* all-zero bits: +0.0 */
+    for (int k = 0; k < fz->npre; k++)
+        fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
+}
+
+/* Particles [a, a + cnt) leave the window: the forces after the springs,
+ * then ydot = [v | f/m] (not-free particles, inv_mass 0, get exactly 0). */
+static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    const size_t i0 = a & fz->mask;
+    double *V[3], *F[3];
+    rows_at(rb, fz->S, 1, d, i0, V);
+    rows_at(rb, fz->S, 2, d, i0, F);
+    for (int k = 0; k < fz->npost; k++)
+        fz->post[k].fn(fz->post[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
+    memcpy(fz->xdot + a * (size_t)d, fz->v + a * (size_t)d, cnt * (size_t)d * sizeof(double));
+    const double *restrict im = fz->inv_mass + a, *restrict f0 = F[0], *restrict f1 = F[1], *restrict f2 = F[2];
+    double *restrict acc = fz->vdot + a * (size_t)d;
+    if (d == 2) {
+        for (size_t j = 0; j < cnt; j++) {
+            double w = im[j];
+            acc[2 * j] = w != 0 ? f0[j] * w : 0.0;
+            acc[2 * j + 1] = w != 0 ? f1[j] * w : 0.0;
+        }
+    } else {
+        for (size_t j = 0; j < cnt; j++) {
+            double w = im[j];
+            acc[3 * j] = w != 0 ? f0[j] * w : 0.0;
+            acc[3 * j + 1] = w != 0 ? f1[j] * w : 0.0;
+            acc[3 * j + 2] = w != 0 ? f2[j] * w : 0.0;
+        }
+    }
+}
+
+/* One thread's share: particles [P, Q) through runs [r0, r1). */
+static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, size_t r1, size_t P, size_t Q, const int d)
+{
+    const springs *s = fz->s;
+    const size_t W = fz->W, mask = fz->mask, S = fz->S;
+    _Alignas(64) double F[3 * SPRING_BLOCK];
+    size_t start = P;
+    for (size_t r = r0; r < r1; r++) {
+        size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r];
+        if ((lo < Q && lo + len > P) || (hi < Q && hi + len > P)) {
+            size_t b = lo & ~(size_t)(SPRING_BLOCK - 1);
+            start = b < P ? b : P;
+            break;
+        }
+    }
+    size_t loaded = start, done = start; /* window: [done, loaded) */
+#define LOAD_TO(p)                                                          \
+    while (loaded < (p)) {                                                  \
+        size_t cnt_ = W - (loaded & mask);                                  \
+        if (cnt_ > (p) - loaded)                                            \
+            cnt_ = (p) - loaded;                                            \
+        enter(fz, rb, loaded, cnt_, d);                                     \
+        loaded += cnt_;                                                     \
+    }
+#define LEAVE_TO(p)                                                         \
+    while (done < (p)) {                                                    \
+        size_t e_ = done + (W - (done & mask));                             \
+        if (e_ > (p))                                                       \
+            e_ = (p);                                                       \
+        LOAD_TO(e_)                                                         \
+        size_t a_ = done > P ? done : P, z_ = e_ < Q ? e_ : Q;              \
+        if (a_ < z_)                                                        \
+            leave(fz, rb, a_, z_ - a_, d);                                  \
+        done = e_;                                                          \
+    }
+    for (size_t r = r0; r < r1; r++) {
+        const size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r], k = s->run_k[r];
+        if (!((lo < Q && lo + len > P) || (hi < Q && hi + len > P)))
+            continue;
+        /* Runs come in blocks of first particle: nothing before this block
+         * receives any more forces. */
+        const size_t b = lo & ~(size_t)(SPRING_BLOCK - 1);
+        LEAVE_TO(b)
+        LOAD_TO(hi + len)
+        /* The run's ends in the ring, cut where either wraps around. */
+        const size_t ia = lo & mask, ib = hi & mask;
+        const size_t ja = W - ia < len ? W - ia : len, jb = W - ib < len ? W - ib : len;
+        const size_t cut[4] = {0, ja < jb ? ja : jb, ja < jb ? jb : ja, len};
+        for (int p = 0; p < 3; p++)
+            if (cut[p] < cut[p + 1]) {
+                const size_t j0 = cut[p];
+                run_forces_d(rb, rb + (size_t)d * S, S, (lo + j0) & mask, (hi + j0) & mask, s->pks + k + j0,
+                             s->pkd + k + j0, s->prest + k + j0, cut[p + 1] - j0, F + j0, d);
+            }
+        for (int c = 0; c < d; c++) {
+            double *restrict Fr = rb + (size_t)(2 * d + c) * S;
+            const double *restrict Fc = F + c * SPRING_BLOCK;
+            for (size_t j = 0; j < ja; j++)
+                Fr[ia + j] -= Fc[j];
+            for (size_t j = ja; j < len; j++)
+                Fr[j - ja] -= Fc[j];
+            for (size_t j = 0; j < jb; j++)
+                Fr[ib + j] += Fc[j];
+            for (size_t j = jb; j < len; j++)
+                Fr[j - jb] += Fc[j];
+        }
+    }
+    LEAVE_TO(Q)
+#undef LOAD_TO
+#undef LEAVE_TO
+}
+
+SPRING_CLONES
+static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1, size_t P, size_t Q)
+{
+    if (d == 2)
+        fused_part_d(fz, rb, r0, r1, P, Q, 2);
+    else
+        fused_part_d(fz, rb, r0, r1, P, Q, 3);
+}
+
+psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,
+                                   bool *used)
+{
+    fused fz;
+    *used = false;
+    if (!eligible(sys, &fz))
+        return PSYS_OK;
+    springs *s = sys->springs;
+    const size_t n = sys->n, nd = n * (size_t)sys->dim;
+    int T = e->threads < 1 ? 1 : e->threads > SPRING_MAX_THREADS ? SPRING_MAX_THREADS : e->threads;
+    if (s->n < SPRING_PARALLEL_MIN && nd < PSYS_PAR_MIN)
+        T = 1;
+    psys_status st = psys__springs_prepare_fused(s, n, &T);
+    if (st != PSYS_OK)
+        return st;
+    const double *rest = psys__springs_rest_now(s, e->t);
+    for (size_t m = 0; m < s->nm; m++)
+        s->prest[s->pos[s->midx[m]]] = rest[s->midx[m]];
+    fz.s = s;
+    fz.n = n;
+    fz.W = s->ring_w;
+    fz.mask = s->ring_w - 1;
+    fz.S = psys__springs_ring_stride(s->ring_w);
+    fz.x = y;
+    fz.v = y + nd;
+    fz.mass = sys->mass;
+    fz.inv_mass = sys->inv_mass;
+    fz.xdot = ydot;
+    fz.vdot = ydot + nd;
+    const size_t ring = 9 * fz.S;
+    if (T <= 1) {
+        fused_part(&fz, sys->dim, s->ring, 0, s->nruns, 0, n);
+    } else {
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static, 1) num_threads(T)
+#endif
+        for (int t = 0; t < T; t++)
+            fused_part(&fz, sys->dim, s->ring + (size_t)t * ring, s->rlo[t], s->rhi[t], psys__part_first(n, T, t),
+                       psys__part_first(n, T, t + 1));
+    }
+    *used = true;
+    return PSYS_OK;
+}

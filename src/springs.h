@@ -1,0 +1,131 @@
+/* The spring set's internals, shared by the force object (force_spring.c)
+ * and the fused derivative (spring_fused.c). */
+#ifndef PSYS_SPRINGS_H
+#define PSYS_SPRINGS_H
+
+#include "internal.h"
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+/* Muscles (Miller's snakes and worms): spring k with a muscle has rest
+ * length r(t) = rest[k]·(1 + amp·sin(omega·t + phase)) at evaluation time t.
+ * Muscle arrays stay NULL until the first muscle exists, so a set without
+ * muscles runs the plain loop on rest[] with no extra work. */
+#define NO_MUSCLE UINT32_MAX
+
+/* Spring loop blocking and threading (springs_apply). */
+#define SPRING_BLOCK 256          /* longest run: its force scratch (6 KiB) stays in L1 */
+#define SPRING_MAX_THREADS 64     /* more threads than this share 64 partitions */
+#define SPRING_PARALLEL_MIN 20000 /* fewer springs than this run on one thread */
+
+typedef struct springs {
+    size_t n, cap;
+    uint32_t *a, *b;
+    double *ks, *kd, *rest;
+    uint32_t *mslot;  /* cap entries once a muscle exists: muscle slot of spring k or NO_MUSCLE */
+    double *rest_t;   /* cap entries once a muscle exists: rest length at the latest evaluation
+                         time (equal to rest[k] for springs without a muscle) */
+    size_t nm, mcap;  /* muscles, compact: spring, amplitude, omega, phase */
+    uint32_t *midx;
+    double *mamp, *momega, *mphase;
+    const psys_system *owner; /* for its particle count (the SoA scratch) */
+    unsigned version;         /* changes with every change of the spring set */
+    /* The evaluation plan (springs_plan): springs regrouped into runs of
+     * equal index offset and consecutive first particles, so that the force
+     * loop reads and writes particles in contiguous blocks and vectorises.
+     * Spring indices users see stay those of the arrays above. */
+    bool plan_ok;
+    unsigned plan_version;
+    size_t nruns;
+    uint32_t *run_lo, *run_off, *run_len; /* run r: springs (lo + j, lo + off + j), j < len */
+    size_t *run_k;                        /* first plan slot of run r */
+    double *pks, *pkd, *prest;            /* parameters in plan order */
+    size_t *pos;                          /* plan slot of spring k */
+    size_t max_off;                       /* largest run_off */
+    /* Thread partition (springs_partition): thread t owns the particles
+     * [P_t, P_t+1), P_t = ceil(t·np/T), and walks runs [rlo[t], rhi[t]),
+     * every run touching a particle it owns. Recomputed when the plan, the
+     * particle count or T changes; no allocation. */
+    unsigned part_version;
+    size_t part_np;
+    int part_t;   /* T of the cached partition, 0 = none */
+    bool part_ok; /* false: the ranges overlap too much to pay, run serially */
+    size_t rlo[SPRING_MAX_THREADS], rhi[SPRING_MAX_THREADS];
+    /* Structure-of-arrays copies of x, v and f (springs_apply): component c
+     * of particle i at soa[(q·dim + c)·soa_cap + i], q = 0 x, 1 v, 2 f, so
+     * the run loop reads and writes whole vectors with no shuffles. Sized at
+     * psys__springs_prepare for the owner's particle count. */
+    double *soa;
+    size_t soa_cap;
+    /* The fused derivative's windows (spring_fused.c): ring_t rings of
+     * 9·ring_w doubles (x, v, f components of ring_w consecutive particles,
+     * particle p at slot p mod ring_w), sized by psys__springs_prepare. */
+    double *ring;
+    size_t ring_w;
+    int ring_t;
+} springs;
+
+/* First particle of thread t's share of np particles among T. */
+static inline size_t psys__part_first(size_t np, int T, int t)
+{
+    return (size_t)(((uint64_t)t * np + (uint64_t)T - 1) / (uint64_t)T);
+}
+
+/* Row stride of a fused-derivative window of w slots: padded so that its 9
+ * rows do not all fall into the same cache sets (w is a power of 2). */
+static inline size_t psys__springs_ring_stride(size_t w) { return w + 24; }
+
+/** Rest lengths at time t (rest[] itself without muscles). */
+const double *psys__springs_rest_now(springs *s, double t);
+/** The plan, thread t's runs for *T threads among np particles (*T drops to
+ *  1 when their runs overlap too much) and *T windows for the fused
+ *  derivative; PSYS_ERR_NOMEM when they cannot be allocated. */
+psys_status psys__springs_prepare_fused(springs *s, size_t np, int *T);
+/** Thread t's runs (rlo[t], rhi[t]) for np particles among T threads, cached. */
+void psys__springs_partition(springs *s, size_t np, int T);
+
+/* Forces of run springs j < len into F (component-major: F[c·SPRING_BLOCK + j]):
+ *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
+ * X, V: the SoA position and velocity components (stride cap), lo and hi
+ * the runs' first particles at the two ends.
+ * A spring of zero length has no direction and exerts no force. */
+static inline void run_forces_d(const double *restrict X, const double *restrict V, size_t cap, size_t lo,
+                                size_t hi, const double *restrict ks, const double *restrict kd,
+                                const double *restrict rest, size_t len, double *restrict F, const int d)
+{
+    const double *restrict xa0 = X + lo, *restrict xb0 = X + hi, *restrict va0 = V + lo, *restrict vb0 = V + hi;
+    const double *restrict xa1 = X + cap + lo, *restrict xb1 = X + cap + hi;
+    const double *restrict va1 = V + cap + lo, *restrict vb1 = V + cap + hi;
+    const double *restrict xa2 = X + 2 * cap + lo, *restrict xb2 = X + 2 * cap + hi;
+    const double *restrict va2 = V + 2 * cap + lo, *restrict vb2 = V + 2 * cap + hi;
+    double *restrict F0 = F, *restrict F1 = F + SPRING_BLOCK, *restrict F2 = F + 2 * SPRING_BLOCK;
+    for (size_t j = 0; j < len; j++) {
+        double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j];
+        double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j];
+        double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1, l2 = 0;
+        if (d == 3) {
+            l2 = xa2[j] - xb2[j];
+            double d2 = va2[j] - vb2[j];
+            len2 = len2 + l2 * l2;
+            dot = dot + d2 * l2;
+        }
+        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+        F0[j] = mag * l0;
+        F1[j] = mag * l1;
+        if (d == 3)
+            F2[j] = mag * l2;
+    }
+}
+
+/* On x86-64 with GCC, also AVX2 and AVX-512 builds of the loop, chosen at
+ * load time by what the CPU has (4 or 8 doubles per instruction instead of
+ * 2). The same operations in the same order (no FMA: -ffp-contract=off;
+ * sqrt and division are correctly rounded at every width), so the same bits. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define SPRING_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define SPRING_CLONES
+#endif
+#endif

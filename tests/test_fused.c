@@ -1,0 +1,272 @@
+/* The fused derivative (src/spring_fused.c) against the generic one: the
+ * same bits for every system it accepts, at every thread count, through
+ * every explicit solver; and the systems it must leave to the generic path. */
+#define _POSIX_C_SOURCE 200809L /* setenv */
+#include "check.h"
+
+#include "../src/internal.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+static uint64_t lcg = 12345;
+static double rnd(void) /* in [0, 1), the same sequence on every machine */
+{
+    lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(lcg >> 11) * (1.0 / 9007199254740992.0);
+}
+
+static void add_particles(psys_system *s, int dim, size_t n, int nx)
+{
+    for (size_t i = 0; i < n; i++) {
+        double x[3] = {0.1 * (double)(i % (size_t)nx) + 0.01 * rnd(), 0.1 * (double)(i / (size_t)nx) + 0.01 * rnd(),
+                       0.01 * rnd()};
+        double v[3] = {rnd() - 0.5, rnd() - 0.5, rnd() - 0.5};
+        if (dim == 2)
+            x[2] = v[2] = 0;
+        CHECK(psys_system_add_particle(s, x, v, 0.5 + rnd(), NULL, NULL) == PSYS_OK);
+    }
+}
+
+static void spring(psys_system *s, size_t a, size_t b)
+{
+    /* rest -1: the current distance, then stretched by the random positions */
+    CHECK(psys_system_add_spring(s, a, b, 50 + 100 * rnd(), 0.5 * rnd(), 0.09 + 0.02 * rnd()) == PSYS_OK);
+}
+
+/* An nx × ny sheet with structural, shear and bend springs (offsets 1, nx,
+ * nx ± 1, 2, 2 nx: the window wraps around many times when nx·ny is large). */
+static void sheet_springs(psys_system *s, size_t first, int nx, int ny)
+{
+    for (int r = 0; r < ny; r++)
+        for (int c = 0; c < nx; c++) {
+            size_t i = first + (size_t)r * (size_t)nx + (size_t)c;
+            if (c + 1 < nx) spring(s, i, i + 1);
+            if (r + 1 < ny) spring(s, i + (size_t)nx, i); /* some springs with a > b */
+            if (c + 1 < nx && r + 1 < ny) spring(s, i, i + (size_t)nx + 1);
+            if (c > 0 && r + 1 < ny) spring(s, i, i + (size_t)nx - 1);
+            if (c + 2 < nx) spring(s, i, i + 2);
+            if (r + 2 < ny) spring(s, i, i + 2 * (size_t)nx);
+        }
+}
+
+enum { SHEET, SHEET_FORCES_AFTER, CHAIN_GAPS_2D, RANDOM_FAR, BIG_SHEET, NKINDS };
+
+static psys_system *build(int kind)
+{
+    const double g3[3] = {0.3, -9.81, 0.2};
+    int dim = kind == CHAIN_GAPS_2D ? 2 : 3;
+    lcg = 12345 + (uint64_t)kind; /* the same system every time */
+    psys_system *s = psys_system_create(dim, NULL);
+    switch (kind) {
+    case SHEET: /* gravity and drag before the springs */
+        add_particles(s, 3, 70 * 45, 70);
+        CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+        CHECK(psys_system_add_drag(s, 0.3) == PSYS_OK);
+        sheet_springs(s, 0, 70, 45);
+        CHECK(psys_system_set_fixed(s, 0, true) == PSYS_OK);
+        CHECK(psys_system_set_fixed(s, 69, true) == PSYS_OK);
+        break;
+    case SHEET_FORCES_AFTER: /* drag before, two gravities after the springs */
+        add_particles(s, 3, 70 * 45, 70);
+        CHECK(psys_system_add_drag(s, 0.3) == PSYS_OK);
+        sheet_springs(s, 0, 70, 45);
+        CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+        CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+        CHECK(psys_system_set_fixed(s, 3000, true) == PSYS_OK);
+        break;
+    case CHAIN_GAPS_2D: { /* particles with no springs before, between and after two chains; muscles */
+        const double g2[2] = {0.1, -9.81};
+        add_particles(s, 2, 5000, 100);
+        CHECK(psys_system_add_gravity(s, g2) == PSYS_OK);
+        for (size_t i = 1000; i + 1 < 1600; i++) {
+            spring(s, i, i + 1);
+            if (i % 7 == 0)
+                spring(s, i + 3, i);
+        }
+        for (size_t i = 4000; i + 1 < 4100; i++)
+            spring(s, i, i + 1);
+        CHECK(psys_system_add_drag(s, 0.2) == PSYS_OK);
+        for (size_t k = 0; k < psys_system_spring_count(s); k += 5)
+            CHECK(psys_system_set_spring_muscle(s, k, 0.3, 2.0 + (double)k, 0.1 * (double)k) == PSYS_OK);
+        psys_system_set_time(s, 0.37);
+        break;
+    }
+    case RANDOM_FAR: /* offsets up to n - 1: a window as long as the system */
+        add_particles(s, 3, 700, 30);
+        CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+        for (int k = 0; k < 3000; k++) {
+            size_t a = (size_t)(rnd() * 700), b = (size_t)(rnd() * 700);
+            if (a != b)
+                spring(s, a, b);
+        }
+        break;
+    case BIG_SHEET: /* over 20,000 springs: threads share the particles */
+        add_particles(s, 3, 110 * 100, 110);
+        CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+        CHECK(psys_system_add_drag(s, 0.1) == PSYS_OK);
+        sheet_springs(s, 0, 110, 100);
+        CHECK(psys_system_set_fixed(s, 5000, true) == PSYS_OK);
+        break;
+    }
+    return s;
+}
+
+/* ydot by the generic path (PSYS_FUSED=0) through the ODE interface. */
+static double *generic_derivative(psys_system *s, const double *y)
+{
+    psys_ode o = psys_system_ode(s);
+    double *ydot = calloc(o.size, sizeof *ydot);
+    setenv("PSYS_FUSED", "0", 1);
+    CHECK(o.derivative(o.ctx, psys_system_time(s), y, ydot) == PSYS_OK);
+    unsetenv("PSYS_FUSED");
+    return ydot;
+}
+
+/* ydot by the fused path, which must take the system. */
+static double *fused_derivative(psys_system *s, const double *y, int threads)
+{
+    psys_ode o = psys_system_ode(s);
+    double *ydot = calloc(o.size, sizeof *ydot);
+    for (size_t i = 0; i < o.size; i++)
+        ydot[i] = NAN; /* every entry must be written */
+    CHECK(psys_system_set_threads(s, threads) == PSYS_OK);
+    psys_force_eval e;
+    size_t nd = o.size / 2;
+    psys__sys_eval(s, psys_system_time(s), y, y + nd, &e);
+    bool used = false;
+    setenv("PSYS_FUSED", "1", 1);
+    CHECK(psys__fused_derivative(s, &e, y, ydot, &used) == PSYS_OK);
+    unsetenv("PSYS_FUSED");
+    CHECK(used);
+    return ydot;
+}
+
+static void derivative_same_bits(void)
+{
+    for (int kind = 0; kind < NKINDS; kind++) {
+        psys_system *s = build(kind);
+        psys_ode o = psys_system_ode(s);
+        double *y = malloc(o.size * sizeof *y);
+        o.get_state(o.ctx, y);
+        double *want = generic_derivative(s, y);
+        for (int threads = 1; threads <= 3; threads++) {
+            double *got = fused_derivative(s, y, threads);
+            size_t bad = o.size;
+            for (size_t i = 0; i < o.size && bad == o.size; i++)
+                if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
+                    bad = i;
+            if (bad != o.size)
+                fprintf(stderr, "kind %d, %d threads: ydot[%zu] = %.17g, generic %.17g\n", kind, threads, bad,
+                        got[bad], want[bad]);
+            CHECK(bad == o.size);
+            free(got);
+        }
+        /* and the forces are not trivially zero: the comparison means something */
+        double norm = 0;
+        for (size_t i = o.size / 2; i < o.size; i++)
+            norm += fabs(want[i]);
+        CHECK(norm > 1.0);
+        free(want);
+        free(y);
+        psys_system_destroy(s);
+    }
+}
+
+/* Whole runs through every explicit solver: the same states bit for bit. */
+static void runs_same_bits(void)
+{
+    static const char *const solvers[] = {"euler", "midpoint", "rk4", "rk45", "symplectic-euler", "verlet"};
+    for (size_t k = 0; k < sizeof solvers / sizeof *solvers; k++)
+        for (int kind = 0; kind < NKINDS; kind += 2) {
+            double *out[2] = {NULL, NULL};
+            size_t size = 0;
+            for (int fused = 0; fused < 2; fused++) {
+                setenv("PSYS_FUSED", fused ? "1" : "0", 1);
+                psys_system *s = build(kind);
+                CHECK(psys_system_set_threads(s, fused ? 2 : 1) == PSYS_OK);
+                psys_ode o = psys_system_ode(s);
+                psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
+                CHECK(sv != NULL);
+                for (int step = 0; step < 10; step++) {
+                    double taken;
+                    CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+                }
+                size = o.size;
+                out[fused] = malloc(size * sizeof(double));
+                o.get_state(o.ctx, out[fused]);
+                psys_solver_destroy(sv);
+                psys_system_destroy(s);
+            }
+            unsetenv("PSYS_FUSED");
+            if (memcmp(out[0], out[1], size * sizeof(double)) != 0)
+                fprintf(stderr, "%s, kind %d: fused and generic runs differ\n", solvers[k], kind);
+            CHECK(memcmp(out[0], out[1], size * sizeof(double)) == 0);
+            free(out[0]);
+            free(out[1]);
+        }
+}
+
+static bool takes(psys_system *s)
+{
+    psys_ode o = psys_system_ode(s);
+    double *y = malloc(o.size * sizeof *y), *ydot = malloc(o.size * sizeof *ydot);
+    o.get_state(o.ctx, y);
+    psys_force_eval e;
+    psys__sys_eval(s, psys_system_time(s), y, y + o.size / 2, &e);
+    bool used = true;
+    CHECK(psys__fused_derivative(s, &e, y, ydot, &used) == PSYS_OK);
+    free(y);
+    free(ydot);
+    return used;
+}
+
+/* Planes, pair forces and forces without row kernels go the generic way;
+ * without PSYS_FUSED, small systems too (their state stays in cache). */
+static void chooses_path(void)
+{
+    unsetenv("PSYS_FUSED");
+    psys_system *s = build(SHEET);
+    CHECK(!takes(s)); /* 3,150 particles: generic unless forced */
+    setenv("PSYS_FUSED", "1", 1);
+    CHECK(takes(s));
+    const double target[3] = {1, 2, 3};
+    CHECK(psys_system_add_mouse_spring(s, 5, target, 10, 1, NULL) == PSYS_OK);
+    CHECK(!takes(s));
+    psys_system_destroy(s);
+
+    s = build(SHEET);
+    psys_plane_def pd = psys_plane_def_default();
+    CHECK(psys_system_add_plane(s, &pd) == PSYS_OK);
+    CHECK(!takes(s));
+    psys_system_destroy(s);
+
+    s = build(SHEET);
+    psys_pair_def pair = psys_pair_def_default();
+    CHECK(psys_system_add_pair(s, &pair, NULL) == PSYS_OK);
+    CHECK(!takes(s));
+    psys_system_destroy(s);
+
+    setenv("PSYS_FUSED", "0", 1);
+    s = build(BIG_SHEET);
+    CHECK(!takes(s));
+    psys_system_destroy(s);
+
+    unsetenv("PSYS_FUSED"); /* a large system: fused by default */
+    s = psys_system_create(3, NULL);
+    add_particles(s, 3, 140000, 1000);
+    for (size_t i = 0; i + 1 < 140000; i++)
+        CHECK(psys_system_add_spring(s, i, i + 1, 10, 0, 0.1) == PSYS_OK);
+    CHECK(takes(s));
+    psys_system_destroy(s);
+}
+
+static const check_case cases[] = {
+    {"derivative_same_bits", derivative_same_bits},
+    {"runs_same_bits", runs_same_bits},
+    {"chooses_path", chooses_path},
+    {NULL, NULL},
+};
+
+int main(int argc, char **argv) { return check_main(argc, argv, cases); }
