@@ -238,10 +238,13 @@ void psys__springs_truncate(void *set, size_t n);
  *  PSYS_ERR_NOMEM on failure). Called before evaluating forces. */
 psys_status psys__springs_prepare(void *set);
 /** The derivative [v | f/m] of sys at (e->t, y) in one pass over memory when
- *  its forces are springs and per-particle forces only (spring_fused.c):
+ *  its forces are springs and per-particle forces only (spring_fused.c),
+ *  into ydot, or with pass (not NULL) applied to it instead of storing it:
  *  *used tells whether it did; the same bits as the generic path. */
 psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,
-                                   bool *used);
+                                   const psys_stage_pass *pass, bool *used);
+/** Whether psys__fused_derivative takes sys as it is now. */
+bool psys__fused_eligible(const psys_system *sys);
 
 /** The order in which each particle's force receives its spring forces
  *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists

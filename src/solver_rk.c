@@ -100,6 +100,49 @@ static bool rk_is_chain(const psys__tableau *tab)
  * state and adds b_i k_i into y1. Each element sees the same operations in
  * the same order as combine() (acc = 0 + w k, acc += w k, ..., y0 + h acc;
  * or y0 + h (w k) for a single weight), so the bits are those of rk_stages. */
+/* Role of stage i's weight in a chain tableau with nw nonzero weights, the
+ * last at stage `last`, after `seen` earlier nonzero ones:
+ * 0 no weight, 1 the only weight, 2 first, 3 middle, 4 last. */
+static int chain_role(const psys__tableau *tab, int i, int nw, int seen, int last)
+{
+    const double w = tab->b[i];
+    return w == 0 ? 0 : nw == 1 ? 1 : seen == 0 ? 2 : i == last ? 4 : 3;
+}
+
+/* rk_chain_stages through ode.derivative_stage: each stage's derivative is
+ * applied to acc and the next stage's state as it is computed and never
+ * stored. The next state alternates between two vectors, since the stage's
+ * own state is read while it is written. The operations per element are
+ * those of rk_chain_stages (psys_stage_pass.acc_op), so the same bits.
+ * PSYS_ERR_UNSUPPORTED, with nothing done, when the ODE declines. */
+static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0,
+                                  double *y1, int nw, int last)
+{
+    if (s->ode.derivative_stage(s->ode.ctx, t, NULL, NULL) != PSYS_OK)
+        return PSYS_ERR_UNSUPPORTED; /* asked before any projection: callbacks run once per stage */
+    double *next[2] = {s->buf[YTMP], tab->stages > 1 ? s->buf[K0 + 1] : NULL};
+    double *yi = y0;
+    int seen = 0;
+    for (int i = 0; i < tab->stages; i++) {
+        const bool more = i + 1 < tab->stages;
+        const int role = chain_role(tab, i, nw, seen, last);
+        if (tab->b[i] != 0)
+            seen++;
+        psys_stage_pass p = {.h = h, .base = y0, .w = tab->b[i], .acc = role == 0 ? NULL : y1};
+        p.acc_op = role == 1 ? 2 : more ? (role == 2 ? 0 : 1) : (role == 2 ? 3 : 4);
+        p.next = more ? next[i & 1] : NULL;
+        p.a = more ? tab->a[i + 1][i] : 0;
+        const double ti = t + tab->c[i] * h;
+        if (s->ode.project)
+            s->ode.project(s->ode.ctx, ti, yi);
+        psys_status st = s->ode.derivative_stage(s->ode.ctx, ti, yi, &p);
+        if (st != PSYS_OK)
+            return psys__fail(&s->err, st, "the derivative evaluation failed at t = %.17g", ti);
+        yi = p.next;
+    }
+    return PSYS_OK;
+}
+
 static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0,
                                    double *y1)
 {
@@ -113,6 +156,11 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
             nw++;
             last = j;
         }
+    if (s->ode.derivative_stage && nw > 0) {
+        psys_status st = rk_chain_fused(s, tab, t, h, y0, y1, nw, last);
+        if (st != PSYS_ERR_UNSUPPORTED)
+            return st;
+    }
     int seen = 0;
     for (int i = 0; i < tab->stages; i++) {
         psys_status st = psys__solver_eval(s, t + tab->c[i] * h, i == 0 ? y0 : yt, k);
@@ -120,7 +168,7 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
             return st;
         const bool next = i + 1 < tab->stages;
         const double an = next ? tab->a[i + 1][i] : 0, w = tab->b[i];
-        const int role = w == 0 ? 0 : nw == 1 ? 1 : seen == 0 ? 2 : i == last ? 4 : 3;
+        const int role = chain_role(tab, i, nw, seen, last);
         if (w != 0)
             seen++;
         /* role 0: no weight; 1: the only weight; 2: first; 3: middle; 4: last */

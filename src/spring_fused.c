@@ -47,7 +47,9 @@ typedef struct fused {
     const springs *s;
     size_t n, W, mask, S; /* ring slots (a power of 2) and row stride */
     const double *x, *v, *mass, *inv_mass; /* particle-major x, v (y's halves) */
-    double *xdot, *vdot;                   /* ydot's halves */
+    double *xdot, *vdot;                   /* ydot's halves (no pass) */
+    const psys_stage_pass *pass;           /* or the solver's work on ydot */
+    size_t nd;
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
     int npre, npost;
 } fused;
@@ -61,12 +63,11 @@ static rows_fn rows_of(const psys_force_class *cls)
     return NULL;
 }
 
-/* Below this many particles the generic path is faster here: its state
- * stays in cache between its passes, while the window's traffic (y in,
- * ydot out) evicts the spring runs' working set from L1 (measured on a
- * 2-vCPU AMD EPYC: cloth 100² 0.85×, 256² about 1×, 1024² 1.3-1.5×; see
+/* Below this many particles the generic path is as fast: its state stays
+ * in cache between its passes (measured on a 2-vCPU AMD EPYC with rk4, the
+ * solver's stage work fused in too: cloth 100² 1.0×, 256² 1.2×, 1024² 1.4×;
  * bench/README.md). PSYS_FUSED=1 or 0 forces the choice (tests, benchmarks). */
-#define FUSED_MIN_PARTICLES 131072
+#define FUSED_MIN_PARTICLES 32768
 
 /* Whether the fused path computes s's derivative: springs, and otherwise
  * only forces with row kernels (at most FUSED_MAX_ROWS on each side of the
@@ -139,19 +140,49 @@ static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt
         fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
 }
 
-/* Particles [a, a + cnt) leave the window: the forces after the springs,
- * then ydot = [v | f/m] (not-free particles, inv_mass 0, get exactly 0). */
-static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+/* The solver's work (psys_stage_pass) on derivative components [off, off + m)
+ * with values k: the expressions of rk_chain_stages, element by element. */
+static FUSED_INLINE void stage_apply(const psys_stage_pass *p, size_t off, const double *restrict k, size_t m)
 {
-    const size_t i0 = a & fz->mask;
-    double *V[3], *F[3];
-    rows_at(rb, fz->S, 1, d, i0, V);
-    rows_at(rb, fz->S, 2, d, i0, F);
-    for (int k = 0; k < fz->npost; k++)
-        fz->post[k].fn(fz->post[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
-    memcpy(fz->xdot + a * (size_t)d, fz->v + a * (size_t)d, cnt * (size_t)d * sizeof(double));
-    const double *restrict im = fz->inv_mass + a, *restrict f0 = F[0], *restrict f1 = F[1], *restrict f2 = F[2];
-    double *restrict acc = fz->vdot + a * (size_t)d;
+    const double h = p->h, w = p->w, an = p->a;
+    const double *restrict base = p->base + off;
+    if (p->next) {
+        double *restrict nx = p->next + off;
+        for (size_t j = 0; j < m; j++)
+            nx[j] = base[j] + h * (an * k[j]);
+    }
+    if (!p->acc)
+        return;
+    double *restrict acc = p->acc + off;
+    switch (p->acc_op) {
+    case 0:
+        for (size_t j = 0; j < m; j++)
+            acc[j] = 0.0 + w * k[j];
+        break;
+    case 1:
+        for (size_t j = 0; j < m; j++)
+            acc[j] = acc[j] + w * k[j];
+        break;
+    case 2:
+        for (size_t j = 0; j < m; j++)
+            acc[j] = base[j] + h * (w * k[j]);
+        break;
+    case 3:
+        for (size_t j = 0; j < m; j++)
+            acc[j] = base[j] + h * (0.0 + w * k[j]);
+        break;
+    default:
+        for (size_t j = 0; j < m; j++)
+            acc[j] = base[j] + h * (acc[j] + w * k[j]);
+        break;
+    }
+}
+
+/* f/m of `cnt` particles (rows f0..f2 of the window) into acc, particle-major;
+ * not-free particles (inv_mass 0) get exactly 0. */
+static FUSED_INLINE void accel(const double *restrict im, const double *restrict f0, const double *restrict f1,
+                               const double *restrict f2, size_t cnt, double *restrict acc, const int d)
+{
     if (d == 2) {
         for (size_t j = 0; j < cnt; j++) {
             double w = im[j];
@@ -165,6 +196,31 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
             acc[3 * j + 1] = w != 0 ? f1[j] * w : 0.0;
             acc[3 * j + 2] = w != 0 ? f2[j] * w : 0.0;
         }
+    }
+}
+
+/* Particles [a, a + cnt) leave the window: the forces after the springs,
+ * then ydot = [v | f/m] (not-free particles, inv_mass 0, get exactly 0). */
+static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    const size_t i0 = a & fz->mask;
+    double *V[3], *F[3];
+    rows_at(rb, fz->S, 1, d, i0, V);
+    rows_at(rb, fz->S, 2, d, i0, F);
+    for (int k = 0; k < fz->npost; k++)
+        fz->post[k].fn(fz->post[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
+    const size_t ad = a * (size_t)d;
+    if (!fz->pass) {
+        memcpy(fz->xdot + ad, fz->v + ad, cnt * (size_t)d * sizeof(double));
+        accel(fz->inv_mass + a, F[0], F[1], F[2], cnt, fz->vdot + ad, d);
+        return;
+    }
+    stage_apply(fz->pass, ad, fz->v + ad, cnt * (size_t)d); /* x' = v */
+    double k[3 * SPRING_BLOCK];
+    for (size_t j = 0; j < cnt; j += SPRING_BLOCK) {
+        const size_t m = cnt - j < SPRING_BLOCK ? cnt - j : SPRING_BLOCK;
+        accel(fz->inv_mass + a + j, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, m, k, d);
+        stage_apply(fz->pass, fz->nd + ad + j * (size_t)d, k, m * (size_t)d);
     }
 }
 
@@ -249,8 +305,14 @@ static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1,
         fused_part_d(fz, rb, r0, r1, P, Q, 3);
 }
 
+bool psys__fused_eligible(const psys_system *sys)
+{
+    fused fz;
+    return eligible(sys, &fz);
+}
+
 psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,
-                                   bool *used)
+                                   const psys_stage_pass *pass, bool *used)
 {
     fused fz;
     *used = false;
@@ -277,7 +339,9 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     fz.mass = sys->mass;
     fz.inv_mass = sys->inv_mass;
     fz.xdot = ydot;
-    fz.vdot = ydot + nd;
+    fz.vdot = ydot ? ydot + nd : NULL;
+    fz.pass = pass;
+    fz.nd = nd;
     const size_t ring = 9 * fz.S;
     if (T <= 1) {
         fused_part(&fz, sys->dim, s->ring, 0, s->nruns, 0, n);

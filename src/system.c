@@ -478,7 +478,7 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     psys_force_eval e;
     psys__sys_eval(s, t, y, y + nd, &e);
     bool fused = false;
-    if (psys__fused_derivative(s, &e, y, ydot, &fused) != PSYS_OK)
+    if (psys__fused_derivative(s, &e, y, ydot, NULL, &fused) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     if (fused)
         return PSYS_OK;
@@ -511,6 +511,21 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
         }
     }
     return PSYS_OK;
+}
+
+/* The derivative with the solver's stage work applied as it is computed:
+ * only where the fused derivative takes the system. */
+static psys_status ode_derivative_stage(void *ctx, double t, const double *y, const psys_stage_pass *pass)
+{
+    psys_system *s = ctx;
+    if (!y)
+        return psys__fused_eligible(s) ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+    psys_force_eval e;
+    psys__sys_eval(s, t, y, y + s->n * (size_t)s->dim, &e);
+    bool fused = false;
+    if (psys__fused_derivative(s, &e, y, NULL, pass, &fused) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
+    return fused ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
 }
 
 /* Implicit-solver view: masses (0 for particles the solver must not move). */
@@ -546,6 +561,7 @@ psys_ode psys_system_ode(psys_system *s)
     o.get_time = ode_get_time;
     o.set_time = ode_set_time;
     o.derivative = ode_derivative;
+    o.derivative_stage = ode_derivative_stage;
     o.project = ode_project;
     o.mass = ode_mass;
     o.jacobian = ode_jacobian;

@@ -1,7 +1,7 @@
 # The fused derivative (src/spring_fused.c): the same bits as the generic one.
 psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path)
 # The determinism checks again with the fused derivative forced on every
-# system it accepts (by default only systems of 131,072 particles or more
+# system it accepts (by default only systems of 32,768 particles or more
 # use it): the committed hashes of the examples and the thread-count runs.
 add_test(NAME cli.determinism.fused
   COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})

@@ -50,6 +50,22 @@ const char *psys_status_name(psys_status s);
 
 struct psys_jacobian;
 
+/** Per-component work that an explicit Runge–Kutta solver whose stage i uses
+ *  only stage i−1 (euler, midpoint, rk4) does with the derivative k of a
+ *  stage: psys_ode.derivative_stage applies it to each component j of k as
+ *  it computes it, instead of storing k (one sweep over memory, not two). */
+typedef struct psys_stage_pass {
+    double h;            /**< step */
+    const double *base;  /**< y0, the state at the start of the step */
+    double *acc;         /**< weighted sum of the stages, NULL when this stage has weight 0 */
+    double w;            /**< this stage's weight */
+    /** acc[j] = 0: 0 + w k; 1: acc[j] + w k; 2: base[j] + h (w k);
+     *  3: base[j] + h (0 + w k); 4: base[j] + h (acc[j] + w k) */
+    int acc_op;
+    double *next;        /**< next stage's state base[j] + h (a k), NULL after the last stage */
+    double a;            /**< the next stage's coefficient of this one */
+} psys_stage_pass;
+
 /** A first-order ODE y' = f(t, y) of fixed size, seen by solvers. */
 typedef struct psys_ode {
     size_t size;  /**< length of the state vector */
@@ -84,6 +100,12 @@ typedef struct psys_ode {
      *  this piece's partial sums, by their totals over all pieces. Adaptive
      *  solvers pass {sum of squared scaled errors, components} through it. */
     void (*reduce_sum)(void *ctx, double *values, int count);
+    /** Optional (may be NULL): evaluate the derivative at (t, y) and apply
+     *  pass to it, component by component, without storing it; the same
+     *  results as derivative followed by pass. PSYS_ERR_UNSUPPORTED when it
+     *  cannot (the solver then does the two itself); with y and pass NULL it
+     *  only answers whether it can (PSYS_OK) or not, changing nothing. */
+    psys_status (*derivative_stage)(void *ctx, double t, const double *y, const psys_stage_pass *pass);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
