@@ -1,5 +1,5 @@
 /* Viscous drag f = -kd v (notes §4.1): a unary, non-conservative force. */
-#include "internal.h"
+#include "springs.h"
 
 #include <cjson/cJSON.h>
 #include <stdlib.h>
@@ -72,6 +72,8 @@ static psys_status drag_save(const psys_system *sys, const void *data, cJSON *ar
 }
 
 /* drag_apply for particles in component rows (the fused derivative). */
+/* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
+SPRING_CLONES
 static void drag_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
                       double *const *F)
 {

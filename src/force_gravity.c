@@ -1,5 +1,5 @@
 /* Uniform gravity f = m g (notes §4.1): a unary force object. */
-#include "internal.h"
+#include "springs.h"
 
 #include <cjson/cJSON.h>
 #include <stdlib.h>
@@ -98,6 +98,8 @@ static psys_status gravity_save(const psys_system *sys, const void *data, cJSON 
 }
 
 /* gravity_apply for particles in component rows (the fused derivative). */
+/* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
+SPRING_CLONES
 static void gravity_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
                          double *const *F)
 {

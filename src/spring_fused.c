@@ -35,6 +35,16 @@
 #define FUSED_INLINE inline
 #endif
 
+/* The loops of run_pair_d carry no dependence between iterations (their
+ * rows are distinct, and a run's two ranges are distinct where both are
+ * written); GCC honours restrict only on parameters, and these pointers are
+ * derived from one, so it is told directly. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define FUSED_IVDEP _Pragma("GCC ivdep")
+#else
+#define FUSED_IVDEP
+#endif
+
 typedef void (*rows_fn)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
                         double *const *F);
 
@@ -183,18 +193,20 @@ static FUSED_INLINE void stage_apply(const psys_stage_pass *p, size_t off, const
 static FUSED_INLINE void accel(const double *restrict im, const double *restrict f0, const double *restrict f1,
                                const double *restrict f2, size_t cnt, double *restrict acc, const int d)
 {
+    /* The products are formed unconditionally and then selected, so the
+     * loop needs no masked loads (the same values: f·w where w ≠ 0). */
     if (d == 2) {
         for (size_t j = 0; j < cnt; j++) {
-            double w = im[j];
-            acc[2 * j] = w != 0 ? f0[j] * w : 0.0;
-            acc[2 * j + 1] = w != 0 ? f1[j] * w : 0.0;
+            const double w = im[j], a0 = f0[j] * w, a1 = f1[j] * w;
+            acc[2 * j] = w != 0 ? a0 : 0.0;
+            acc[2 * j + 1] = w != 0 ? a1 : 0.0;
         }
     } else {
         for (size_t j = 0; j < cnt; j++) {
-            double w = im[j];
-            acc[3 * j] = w != 0 ? f0[j] * w : 0.0;
-            acc[3 * j + 1] = w != 0 ? f1[j] * w : 0.0;
-            acc[3 * j + 2] = w != 0 ? f2[j] * w : 0.0;
+            const double w = im[j], a0 = f0[j] * w, a1 = f1[j] * w, a2 = f2[j] * w;
+            acc[3 * j] = w != 0 ? a0 : 0.0;
+            acc[3 * j + 1] = w != 0 ? a1 : 0.0;
+            acc[3 * j + 2] = w != 0 ? a2 : 0.0;
         }
     }
 }
@@ -221,6 +233,81 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
         const size_t m = cnt - j < SPRING_BLOCK ? cnt - j : SPRING_BLOCK;
         accel(fz->inv_mass + a + j, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, m, k, d);
         stage_apply(fz->pass, fz->nd + ad + j * (size_t)d, k, m * (size_t)d);
+    }
+}
+
+/* Forces of run springs j < len with their ends at ring slots a + j and
+ * b + j (rows of stride S: x, v, f components): f_a -= F in the loop, and
+ * f_b += F too when `apart` (the two ranges do not overlap, so no particle
+ * gets two of the run's additions), else F is kept in Fk (stride
+ * SPRING_BLOCK) for a second loop. The operations of run_forces_d. */
+static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, const double *restrict ks,
+                                    const double *restrict kd, const double *restrict rest, size_t len,
+                                    double *restrict Fk, bool apart, const int d)
+{
+    const double *restrict xa0 = rb + a, *restrict xb0 = rb + b, *restrict xa1 = rb + S + a,
+                           *restrict xb1 = rb + S + b;
+    const double *restrict va0 = rb + (size_t)d * S + a, *restrict vb0 = rb + (size_t)d * S + b;
+    const double *restrict va1 = rb + (size_t)(d + 1) * S + a, *restrict vb1 = rb + (size_t)(d + 1) * S + b;
+    double *restrict fa0 = rb + (size_t)(2 * d) * S + a, *restrict fb0 = rb + (size_t)(2 * d) * S + b;
+    double *restrict fa1 = rb + (size_t)(2 * d + 1) * S + a, *restrict fb1 = rb + (size_t)(2 * d + 1) * S + b;
+    double *restrict F0 = Fk, *restrict F1 = Fk + SPRING_BLOCK, *restrict F2 = Fk + 2 * SPRING_BLOCK;
+    if (d == 2) {
+        FUSED_IVDEP
+        for (size_t j = 0; j < len; j++) {
+            double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j];
+            double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j];
+            double mag = psys__spring_mag(ks[j], kd[j], rest[j], l0 * l0 + l1 * l1, d0 * l0 + d1 * l1);
+            double g0 = mag * l0, g1 = mag * l1;
+            fa0[j] -= g0;
+            fa1[j] -= g1;
+            if (apart) {
+                fb0[j] += g0;
+                fb1[j] += g1;
+            } else {
+                F0[j] = g0;
+                F1[j] = g1;
+            }
+        }
+        return;
+    }
+    const double *restrict xa2 = rb + 2 * S + a, *restrict xb2 = rb + 2 * S + b;
+    const double *restrict va2 = rb + 5 * S + a, *restrict vb2 = rb + 5 * S + b;
+    double *restrict fa2 = rb + 8 * S + a, *restrict fb2 = rb + 8 * S + b;
+    if (apart) {
+        FUSED_IVDEP
+        for (size_t j = 0; j < len; j++) {
+            double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j], l2 = xa2[j] - xb2[j];
+            double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j], d2 = va2[j] - vb2[j];
+            double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
+            len2 = len2 + l2 * l2;
+            dot = dot + d2 * l2;
+            double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+            double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
+            fa0[j] -= g0;
+            fa1[j] -= g1;
+            fa2[j] -= g2;
+            fb0[j] += g0;
+            fb1[j] += g1;
+            fb2[j] += g2;
+        }
+    } else {
+        FUSED_IVDEP
+        for (size_t j = 0; j < len; j++) {
+            double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j], l2 = xa2[j] - xb2[j];
+            double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j], d2 = va2[j] - vb2[j];
+            double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
+            len2 = len2 + l2 * l2;
+            dot = dot + d2 * l2;
+            double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+            double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
+            fa0[j] -= g0;
+            fa1[j] -= g1;
+            fa2[j] -= g2;
+            F0[j] = g0;
+            F1[j] = g1;
+            F2[j] = g2;
+        }
     }
 }
 
@@ -272,24 +359,25 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
         const size_t ia = lo & mask, ib = hi & mask;
         const size_t ja = W - ia < len ? W - ia : len, jb = W - ib < len ? W - ib : len;
         const size_t cut[4] = {0, ja < jb ? ja : jb, ja < jb ? jb : ja, len};
+        /* Both ends' forces are added in the loop itself; only when the
+         * run's two ranges overlap (off < len) do the second ends wait for
+         * a second loop, after all first ends, as in the plan order. */
+        const bool apart = hi >= lo + len;
         for (int p = 0; p < 3; p++)
             if (cut[p] < cut[p + 1]) {
                 const size_t j0 = cut[p];
-                run_forces_d(rb, rb + (size_t)d * S, S, (lo + j0) & mask, (hi + j0) & mask, s->pks + k + j0,
-                             s->pkd + k + j0, s->prest + k + j0, cut[p + 1] - j0, F + j0, d);
+                run_pair_d(rb, S, (lo + j0) & mask, (hi + j0) & mask, s->pks + k + j0, s->pkd + k + j0,
+                           s->prest + k + j0, cut[p + 1] - j0, F + j0, apart, d);
             }
-        for (int c = 0; c < d; c++) {
-            double *restrict Fr = rb + (size_t)(2 * d + c) * S;
-            const double *restrict Fc = F + c * SPRING_BLOCK;
-            for (size_t j = 0; j < ja; j++)
-                Fr[ia + j] -= Fc[j];
-            for (size_t j = ja; j < len; j++)
-                Fr[j - ja] -= Fc[j];
-            for (size_t j = 0; j < jb; j++)
-                Fr[ib + j] += Fc[j];
-            for (size_t j = jb; j < len; j++)
-                Fr[j - jb] += Fc[j];
-        }
+        if (!apart)
+            for (int c = 0; c < d; c++) {
+                double *restrict Fr = rb + (size_t)(2 * d + c) * S;
+                const double *restrict Fc = F + c * SPRING_BLOCK;
+                for (size_t j = 0; j < jb; j++)
+                    Fr[ib + j] += Fc[j];
+                for (size_t j = jb; j < len; j++)
+                    Fr[j - jb] += Fc[j];
+            }
     }
     LEAVE_TO(Q)
 #undef LOAD_TO
