@@ -116,6 +116,16 @@ errors)
     [ "$RC" -eq 0 ] && ok || fail "4 ranks, domain, energy: exit $RC: $(cat err.txt)"
     "$PSYS" run "$SRC/tests/mpi/lj-melt.json" --steps 20 --every 5 --energy es4.csv --out ts4.xyz --quiet
     cmp -s e4.csv es4.csv && cmp -s t4.xyz ts4.xyz && ok || fail "4 ranks, domain: energy CSV or XYZ differs from serial"
+    # VTK frames (one .vtp per frame and the .pvd) from rank 0 on 2 ranks, domain mode, with springs
+    # across the cut: the same files as the serial run's, byte for byte.
+    mkdir -p vtk2 vtk1
+    (cd vtk2 && mpirun 2 run "$SRC/tests/mpi/cloth.json" --steps 12 --every 4 --out c.vtp --mpi domain --quiet) \
+        >out.txt 2>err.txt
+    RC=$?
+    [ "$RC" -eq 0 ] && ok || fail "2 ranks, domain, VTK: exit $RC: $(cat err.txt)"
+    (cd vtk1 && "$PSYS" run "$SRC/tests/mpi/cloth.json" --steps 12 --every 4 --out c.vtp --quiet)
+    [ -f vtk2/c.pvd ] && [ "$(ls vtk2 | wc -l)" -eq 5 ] && diff -r vtk1 vtk2 >/dev/null && ok \
+        || fail "2 ranks, domain: VTK frames differ from serial: $(ls vtk2 | tr '\n' ' ')"
     ;;
 *)
     scene=$SRC/tests/mpi/$CASE.json
