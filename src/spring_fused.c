@@ -10,8 +10,8 @@
  * f = 0 plus the forces listed before the springs), the runs of each block
  * of 256 first particles add their spring forces, and particles that no
  * later run touches leave it (forces listed after the springs, then v and
- * f/m into ydot). The window stays in cache; y is read once, ydot written
- * once.
+ * f/m into ydot, or straight into the solver's stage work, psys_stage_pass).
+ * The window stays in cache; y is read once, ydot written once.
  *
  * Same bits as the generic path: every particle's force sees the same
  * operations in the same order (0, the forces before the springs in list
@@ -243,7 +243,7 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
  * SPRING_BLOCK) for a second loop. The operations of run_forces_d. */
 static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, const double *restrict ks,
                                     const double *restrict kd, const double *restrict rest, size_t len,
-                                    double *restrict Fk, bool apart, const int d)
+                                    double *restrict Fk, const bool apart, const int d)
 {
     const double *restrict xa0 = rb + a, *restrict xb0 = rb + b, *restrict xa1 = rb + S + a,
                            *restrict xb1 = rb + S + b;
@@ -274,36 +274,23 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     const double *restrict xa2 = rb + 2 * S + a, *restrict xb2 = rb + 2 * S + b;
     const double *restrict va2 = rb + 5 * S + a, *restrict vb2 = rb + 5 * S + b;
     double *restrict fa2 = rb + 8 * S + a, *restrict fb2 = rb + 8 * S + b;
-    if (apart) {
-        FUSED_IVDEP
-        for (size_t j = 0; j < len; j++) {
-            double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j], l2 = xa2[j] - xb2[j];
-            double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j], d2 = va2[j] - vb2[j];
-            double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
-            len2 = len2 + l2 * l2;
-            dot = dot + d2 * l2;
-            double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
-            double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
-            fa0[j] -= g0;
-            fa1[j] -= g1;
-            fa2[j] -= g2;
+    FUSED_IVDEP
+    for (size_t j = 0; j < len; j++) {
+        double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j], l2 = xa2[j] - xb2[j];
+        double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j], d2 = va2[j] - vb2[j];
+        double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
+        len2 = len2 + l2 * l2;
+        dot = dot + d2 * l2;
+        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+        double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
+        fa0[j] -= g0;
+        fa1[j] -= g1;
+        fa2[j] -= g2;
+        if (apart) {
             fb0[j] += g0;
             fb1[j] += g1;
             fb2[j] += g2;
-        }
-    } else {
-        FUSED_IVDEP
-        for (size_t j = 0; j < len; j++) {
-            double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j], l2 = xa2[j] - xb2[j];
-            double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j], d2 = va2[j] - vb2[j];
-            double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
-            len2 = len2 + l2 * l2;
-            dot = dot + d2 * l2;
-            double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
-            double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
-            fa0[j] -= g0;
-            fa1[j] -= g1;
-            fa2[j] -= g2;
+        } else {
             F0[j] = g0;
             F1[j] = g1;
             F2[j] = g2;
@@ -312,7 +299,8 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
 }
 
 /* One thread's share: particles [P, Q) through runs [r0, r1). */
-static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, size_t r1, size_t P, size_t Q, const int d)
+static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, size_t r1, size_t P, size_t Q,
+                                      const int d)
 {
     const springs *s = fz->s;
     const size_t W = fz->W, mask = fz->mask, S = fz->S;
@@ -366,8 +354,12 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
         for (int p = 0; p < 3; p++)
             if (cut[p] < cut[p + 1]) {
                 const size_t j0 = cut[p];
-                run_pair_d(rb, S, (lo + j0) & mask, (hi + j0) & mask, s->pks + k + j0, s->pkd + k + j0,
-                           s->prest + k + j0, cut[p + 1] - j0, F + j0, apart, d);
+                const size_t pa = (lo + j0) & mask, pb = (hi + j0) & mask, m = cut[p + 1] - j0;
+                const double *ks = s->pks + k + j0, *kd = s->pkd + k + j0, *rest = s->prest + k + j0;
+                if (apart) /* a constant in each inlined copy: two loops, no test inside */
+                    run_pair_d(rb, S, pa, pb, ks, kd, rest, m, F + j0, true, d);
+                else
+                    run_pair_d(rb, S, pa, pb, ks, kd, rest, m, F + j0, false, d);
             }
         if (!apart)
             for (int c = 0; c < d; c++) {
