@@ -66,9 +66,7 @@ med_time() {
         if [ "$r" -eq 1 ]; then
             "$PSYS" run "$scene" --steps "$steps" --threads 1 --quiet
         else
-            # one thread per rank, as the serial run and LAMMPS (OMP_NUM_THREADS=1): without it
-            # every rank starts OpenMP's default number of threads and the ranks oversubscribe the cores
-            "$MPIEXEC" "${FLAGS[@]}" -n "$r" "$PSYS" run "$scene" --steps "$steps" --threads 1 --mpi "$MODE" --quiet
+            "$MPIEXEC" "${FLAGS[@]}" -n "$r" "$PSYS" run "$scene" --steps "$steps" --mpi "$MODE" --quiet
         fi
         t1=$(date +%s.%N)
         times+=("$(awk -v a="$t0" -v b="$t1" 'BEGIN { print b - a }')")
