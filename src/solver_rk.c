@@ -136,6 +136,9 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
         if (s->ode.project)
             s->ode.project(s->ode.ctx, ti, yi);
         psys_status st = s->ode.derivative_stage(s->ode.ctx, ti, yi, &p);
+        if (st == PSYS_ERR_UNSUPPORTED) /* it accepted the step: declining a stage now is a fault, not a fallback */
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "the derivative declined stage %d of a step at t = %.17g",
+                              i, ti);
         if (st != PSYS_OK)
             return psys__fail(&s->err, st, "the derivative evaluation failed at t = %.17g", ti);
         yi = p.next;

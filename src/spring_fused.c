@@ -76,7 +76,8 @@ static rows_fn rows_of(const psys_force_class *cls)
 /* Below this many particles the generic path is as fast: its state stays
  * in cache between its passes (measured on a 2-vCPU AMD EPYC with rk4, the
  * solver's stage work fused in too: cloth 100² 1.0×, 256² 1.2×, 1024² 1.4×;
- * bench/README.md). PSYS_FUSED=1 or 0 forces the choice (tests, benchmarks). */
+ * bench/README.md). PSYS_FUSED=1 or 0 forces the choice (tests, benchmarks);
+ * forced, it also runs small sets on all the evaluation's threads. */
 #define FUSED_MIN_PARTICLES 32768
 
 /* Whether the fused path computes s's derivative: springs, and otherwise
@@ -401,7 +402,10 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     springs *s = sys->springs;
     const size_t n = sys->n, nd = n * (size_t)sys->dim;
     int T = e->threads < 1 ? 1 : e->threads > SPRING_MAX_THREADS ? SPRING_MAX_THREADS : e->threads;
-    if (s->n < SPRING_PARALLEL_MIN && nd < PSYS_PAR_MIN)
+    const char *force = getenv("PSYS_FUSED");
+    /* Small sets run on one thread, unless the fused path is forced: then
+     * at the evaluation's thread count, so tests reach every thread path. */
+    if (s->n < SPRING_PARALLEL_MIN && nd < PSYS_PAR_MIN && !(force && force[0] == '1'))
         T = 1;
     psys_status st = psys__springs_prepare_fused(s, n, &T);
     if (st != PSYS_OK)

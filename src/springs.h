@@ -61,7 +61,7 @@ typedef struct springs {
     size_t soa_cap;
     /* The fused derivative's windows (spring_fused.c): ring_t rings of
      * 9·ring_w doubles (x, v, f components of ring_w consecutive particles,
-     * particle p at slot p mod ring_w), sized by psys__springs_prepare. */
+     * particle p at slot p mod ring_w), sized by psys__springs_prepare_fused. */
     double *ring;
     size_t ring_w;
     int ring_t;

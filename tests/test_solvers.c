@@ -405,6 +405,7 @@ static psys_ode counted_ode(counted *c, psys_system *sys)
     o.set_time = w_set_time;
     o.derivative = w_deriv;
     o.project = c->inner.project ? w_project : NULL;
+    o.derivative_stage = NULL; /* it would bypass w_deriv's count (and take the system as ctx) */
     return o;
 }
 

@@ -53,7 +53,8 @@ struct psys_jacobian;
 /** Per-component work that an explicit Runge–Kutta solver whose stage i uses
  *  only stage i−1 (euler, midpoint, rk4) does with the derivative k of a
  *  stage: psys_ode.derivative_stage applies it to each component j of k as
- *  it computes it, instead of storing k (one sweep over memory, not two). */
+ *  it computes it, instead of storing k (one sweep over memory, not two).
+ *  acc and next never overlap each other, base or the stage's state y. */
 typedef struct psys_stage_pass {
     double h;            /**< step */
     const double *base;  /**< y0, the state at the start of the step */
@@ -104,7 +105,9 @@ typedef struct psys_ode {
      *  pass to it, component by component, without storing it; the same
      *  results as derivative followed by pass. PSYS_ERR_UNSUPPORTED when it
      *  cannot (the solver then does the two itself); with y and pass NULL it
-     *  only answers whether it can (PSYS_OK) or not, changing nothing. */
+     *  only answers whether it can (PSYS_OK) or not, changing nothing. It
+     *  belongs with ctx and derivative: an ODE that wraps another (its own
+     *  ctx or derivative) must set it to NULL or to its own. */
     psys_status (*derivative_stage)(void *ctx, double t, const double *y, const psys_stage_pass *pass);
 } psys_ode;
 
