@@ -61,6 +61,7 @@ typedef struct fused {
     const psys_stage_pass *pass;           /* or the solver's work on ydot */
     size_t nd;
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
+    bool forced; /* PSYS_FUSED=1: the fused path for every system it accepts (read once per evaluation) */
     int npre, npost;
 } fused;
 
@@ -91,7 +92,8 @@ static bool eligible(const psys_system *s, fused *fz)
     const char *force = getenv("PSYS_FUSED");
     if (force && force[0] == '0')
         return false;
-    if (!(force && force[0] == '1') && s->n < FUSED_MIN_PARTICLES)
+    fz->forced = force && force[0] == '1';
+    if (!fz->forced && s->n < FUSED_MIN_PARTICLES)
         return false;
     bool after = false;
     fz->npre = fz->npost = 0;
@@ -402,10 +404,9 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     springs *s = sys->springs;
     const size_t n = sys->n, nd = n * (size_t)sys->dim;
     int T = e->threads < 1 ? 1 : e->threads > SPRING_MAX_THREADS ? SPRING_MAX_THREADS : e->threads;
-    const char *force = getenv("PSYS_FUSED");
     /* Small sets run on one thread, unless the fused path is forced: then
      * at the evaluation's thread count, so tests reach every thread path. */
-    if (s->n < SPRING_PARALLEL_MIN && nd < PSYS_PAR_MIN && !(force && force[0] == '1'))
+    if (s->n < SPRING_PARALLEL_MIN && nd < PSYS_PAR_MIN && !fz.forced)
         T = 1;
     psys_status st = psys__springs_prepare_fused(s, n, &T);
     if (st != PSYS_OK)
