@@ -61,7 +61,7 @@ typedef struct fused {
     const psys_stage_pass *pass;           /* or the solver's work on ydot */
     size_t nd;
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
-    bool forced; /* PSYS_FUSED=1: the fused path for every system it accepts (read once per evaluation) */
+    bool forced; /* PSYS_FUSED=1: small sets threaded too (read once per evaluation) */
     int npre, npost;
 } fused;
 
@@ -74,12 +74,12 @@ static rows_fn rows_of(const psys_force_class *cls)
     return NULL;
 }
 
-/* Below this many particles the generic path is as fast: its state stays
- * in cache between its passes (measured on a 2-vCPU AMD EPYC with rk4, the
- * solver's stage work fused in too: cloth 100² 1.0×, 256² 1.2×, 1024² 1.4×;
- * bench/README.md). PSYS_FUSED=1 or 0 forces the choice (tests, benchmarks);
- * forced, it also runs small sets on all the evaluation's threads. */
-#define FUSED_MIN_PARTICLES 32768
+/* The fused path runs whenever a system is eligible: it is never slower
+ * than the generic one and mostly faster, even in cache (cloth-N, rk4, one
+ * thread, AMD EPYC family 26, AVX-512: N = 8 to 256, 1.2 to 3.9 × faster;
+ * on an AVX2 family 25 host the two were equal at 100²; bench/README.md).
+ * PSYS_FUSED=0 turns it off; PSYS_FUSED=1 also runs small sets on all the
+ * evaluation's threads (tests, benchmarks). */
 
 /* Whether the fused path computes s's derivative: springs, and otherwise
  * only forces with row kernels (at most FUSED_MAX_ROWS on each side of the
@@ -93,8 +93,6 @@ static bool eligible(const psys_system *s, fused *fz)
     if (force && force[0] == '0')
         return false;
     fz->forced = force && force[0] == '1';
-    if (!fz->forced && s->n < FUSED_MIN_PARTICLES)
-        return false;
     bool after = false;
     fz->npre = fz->npost = 0;
     for (size_t i = 0; i < s->nforces; i++) {

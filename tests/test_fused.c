@@ -245,7 +245,7 @@ static void chooses_path(void)
 {
     unsetenv("PSYS_FUSED");
     psys_system *s = build(SHEET);
-    CHECK(!takes(s)); /* 3,150 particles: generic unless forced */
+    CHECK(takes(s)); /* 3,150 particles: fused by default at every size */
     setenv("PSYS_FUSED", "1", 1);
     CHECK(takes(s));
     const double target[3] = {1, 2, 3};
