@@ -26,6 +26,9 @@
 #include <string.h>
 
 #define FUSED_MAX_ROWS 8 /* per-particle forces before and after the springs */
+/* Overlapping runs with an offset of at least this many springs go in
+ * reverse chunks (fused_part_d), shorter ones through a second loop. */
+#define FUSED_CHUNK_MIN 8
 
 /* Into each clone of fused_part (SPRING_CLONES), so the loops get its
  * instruction set. */
@@ -241,30 +244,32 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
  * b + j (rows of stride S: x, v, f components): f_a -= F in the loop, and
  * f_b += F too when `apart` (the two ranges do not overlap, so no particle
  * gets two of the run's additions), else F is kept in Fk (stride
- * SPRING_BLOCK) for a second loop. The operations of run_forces_d. */
+ * SPRING_BLOCK) for a second loop. The operations of run_forces_d.
+ * Each row is addressed as one base and the two ends as index j and
+ * j + (b - a): 9 bases and 2 indices fit the registers, where a pointer per
+ * row and end (18) made GCC spill them inside the loop. */
 static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, const double *restrict ks,
                                     const double *restrict kd, const double *restrict rest, size_t len,
                                     double *restrict Fk, const bool apart, const int d)
 {
-    const double *restrict xa0 = rb + a, *restrict xb0 = rb + b, *restrict xa1 = rb + S + a,
-                           *restrict xb1 = rb + S + b;
-    const double *restrict va0 = rb + (size_t)d * S + a, *restrict vb0 = rb + (size_t)d * S + b;
-    const double *restrict va1 = rb + (size_t)(d + 1) * S + a, *restrict vb1 = rb + (size_t)(d + 1) * S + b;
-    double *restrict fa0 = rb + (size_t)(2 * d) * S + a, *restrict fb0 = rb + (size_t)(2 * d) * S + b;
-    double *restrict fa1 = rb + (size_t)(2 * d + 1) * S + a, *restrict fb1 = rb + (size_t)(2 * d + 1) * S + b;
+    const ptrdiff_t o = (ptrdiff_t)b - (ptrdiff_t)a;
+    double *const r0 = rb + a;
+    const double *x0 = r0, *x1 = r0 + S, *v0 = r0 + (size_t)d * S, *v1 = r0 + (size_t)(d + 1) * S;
+    double *f0 = r0 + (size_t)(2 * d) * S, *f1 = r0 + (size_t)(2 * d + 1) * S;
     double *restrict F0 = Fk, *restrict F1 = Fk + SPRING_BLOCK, *restrict F2 = Fk + 2 * SPRING_BLOCK;
     if (d == 2) {
         FUSED_IVDEP
         for (size_t j = 0; j < len; j++) {
-            double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j];
-            double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j];
+            const ptrdiff_t jb = (ptrdiff_t)j + o;
+            double l0 = x0[j] - x0[jb], l1 = x1[j] - x1[jb];
+            double d0 = v0[j] - v0[jb], d1 = v1[j] - v1[jb];
             double mag = psys__spring_mag(ks[j], kd[j], rest[j], l0 * l0 + l1 * l1, d0 * l0 + d1 * l1);
             double g0 = mag * l0, g1 = mag * l1;
-            fa0[j] -= g0;
-            fa1[j] -= g1;
+            f0[j] -= g0;
+            f1[j] -= g1;
             if (apart) {
-                fb0[j] += g0;
-                fb1[j] += g1;
+                f0[jb] += g0;
+                f1[jb] += g1;
             } else {
                 F0[j] = g0;
                 F1[j] = g1;
@@ -272,30 +277,50 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
         }
         return;
     }
-    const double *restrict xa2 = rb + 2 * S + a, *restrict xb2 = rb + 2 * S + b;
-    const double *restrict va2 = rb + 5 * S + a, *restrict vb2 = rb + 5 * S + b;
-    double *restrict fa2 = rb + 8 * S + a, *restrict fb2 = rb + 8 * S + b;
+    const double *x2 = r0 + 2 * S, *v2 = r0 + 5 * S;
+    double *f2 = r0 + 8 * S;
     FUSED_IVDEP
     for (size_t j = 0; j < len; j++) {
-        double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j], l2 = xa2[j] - xb2[j];
-        double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j], d2 = va2[j] - vb2[j];
+        const ptrdiff_t jb = (ptrdiff_t)j + o;
+        double l0 = x0[j] - x0[jb], l1 = x1[j] - x1[jb], l2 = x2[j] - x2[jb];
+        double d0 = v0[j] - v0[jb], d1 = v1[j] - v1[jb], d2 = v2[j] - v2[jb];
         double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
         len2 = len2 + l2 * l2;
         dot = dot + d2 * l2;
         double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
         double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
-        fa0[j] -= g0;
-        fa1[j] -= g1;
-        fa2[j] -= g2;
+        f0[j] -= g0;
+        f1[j] -= g1;
+        f2[j] -= g2;
         if (apart) {
-            fb0[j] += g0;
-            fb1[j] += g1;
-            fb2[j] += g2;
+            f0[jb] += g0;
+            f1[jb] += g1;
+            f2[jb] += g2;
         } else {
             F0[j] = g0;
             F1[j] = g1;
             F2[j] = g2;
         }
+    }
+}
+
+/* Springs [c, e) of the run (lo, off, plan slot k): both ends in the loop
+ * (e - c ≤ off, so no particle is both a first and a second end here), cut
+ * where either end's range wraps around the ring. */
+static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo, size_t hi, size_t k, size_t c,
+                                         size_t e, double *F, const int d)
+{
+    const springs *s = fz->s;
+    const size_t W = fz->W, mask = fz->mask;
+    while (c < e) {
+        const size_t pa = (lo + c) & mask, pb = (hi + c) & mask;
+        size_t m = e - c;
+        if (W - pa < m)
+            m = W - pa;
+        if (W - pb < m)
+            m = W - pb;
+        run_pair_d(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, true, d);
+        c += m;
     }
 }
 
@@ -344,33 +369,46 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
         const size_t b = lo & ~(size_t)(SPRING_BLOCK - 1);
         LEAVE_TO(b)
         LOAD_TO(hi + len)
-        /* The run's ends in the ring, cut where either wraps around. */
+        const size_t off = hi - lo;
+        if (off >= len) {
+            /* the two ranges are apart: both ends in one loop */
+            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, d);
+            continue;
+        }
+        if (off >= FUSED_CHUNK_MIN) {
+            /* Overlapping ranges, long offset: chunks of at most off springs
+             * from the last back to the first, both ends in the loop. A
+             * particle that is a second end (spring j) and a first end
+             * (spring j + off ≥ the chunk's end) gets its first-end force
+             * in an earlier chunk, as in the plan order (all first ends,
+             * then all second ends). */
+            for (size_t e = len; e > 0;) {
+                const size_t c = e > off ? e - off : 0;
+                run_piece_apart(fz, rb, lo, hi, k, c, e, F, d);
+                e = c;
+            }
+            continue;
+        }
+        /* Short offsets (1, 2: a row's neighbours): the first ends in the
+         * loop, the forces kept for a second loop over the second ends. The
+         * run's ends in the ring, cut where either wraps around. */
         const size_t ia = lo & mask, ib = hi & mask;
         const size_t ja = W - ia < len ? W - ia : len, jb = W - ib < len ? W - ib : len;
         const size_t cut[4] = {0, ja < jb ? ja : jb, ja < jb ? jb : ja, len};
-        /* Both ends' forces are added in the loop itself; only when the
-         * run's two ranges overlap (off < len) do the second ends wait for
-         * a second loop, after all first ends, as in the plan order. */
-        const bool apart = hi >= lo + len;
         for (int p = 0; p < 3; p++)
             if (cut[p] < cut[p + 1]) {
                 const size_t j0 = cut[p];
                 const size_t pa = (lo + j0) & mask, pb = (hi + j0) & mask, m = cut[p + 1] - j0;
-                const double *ks = s->pks + k + j0, *kd = s->pkd + k + j0, *rest = s->prest + k + j0;
-                if (apart) /* a constant in each inlined copy: two loops, no test inside */
-                    run_pair_d(rb, S, pa, pb, ks, kd, rest, m, F + j0, true, d);
-                else
-                    run_pair_d(rb, S, pa, pb, ks, kd, rest, m, F + j0, false, d);
+                run_pair_d(rb, S, pa, pb, s->pks + k + j0, s->pkd + k + j0, s->prest + k + j0, m, F + j0, false, d);
             }
-        if (!apart)
-            for (int c = 0; c < d; c++) {
-                double *restrict Fr = rb + (size_t)(2 * d + c) * S;
-                const double *restrict Fc = F + c * SPRING_BLOCK;
-                for (size_t j = 0; j < jb; j++)
-                    Fr[ib + j] += Fc[j];
-                for (size_t j = jb; j < len; j++)
-                    Fr[j - jb] += Fc[j];
-            }
+        for (int c = 0; c < d; c++) {
+            double *restrict Fr = rb + (size_t)(2 * d + c) * S;
+            const double *restrict Fc = F + c * SPRING_BLOCK;
+            for (size_t j = 0; j < jb; j++)
+                Fr[ib + j] += Fc[j];
+            for (size_t j = jb; j < len; j++)
+                Fr[j - jb] += Fc[j];
+        }
     }
     LEAVE_TO(Q)
 #undef LOAD_TO
