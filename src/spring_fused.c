@@ -77,8 +77,9 @@ static rows_fn rows_of(const psys_force_class *cls)
     return NULL;
 }
 
-/* The fused path runs whenever a system is eligible: it is never slower
- * than the generic one and mostly faster, even in cache (cloth-N, rk4, one
+/* The fused path runs whenever a system is eligible: it was not slower
+ * than the generic one at any size measured, and mostly faster, even in
+ * cache (cloth-N, rk4, one
  * thread, AMD EPYC family 26, AVX-512: N = 8 to 256, 1.2 to 3.9 × faster;
  * on an AVX2 family 25 host the two were equal at 100²; bench/README.md).
  * PSYS_FUSED=0 turns it off; PSYS_FUSED=1 also runs small sets on all the
@@ -245,9 +246,9 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
  * f_b += F too when `apart` (the two ranges do not overlap, so no particle
  * gets two of the run's additions), else F is kept in Fk (stride
  * SPRING_BLOCK) for a second loop. The operations of run_forces_d.
- * Each row is addressed as one base and the two ends as index j and
- * j + (b - a): 9 bases and 2 indices fit the registers, where a pointer per
- * row and end (18) made GCC spill them inside the loop. */
+ * Each row is addressed from one base, the two ends at j and j + (b - a)
+ * (the ring slots of the two ranges never coincide: they lie less than
+ * the window apart, and a piece is cut where either range wraps). */
 static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, const double *restrict ks,
                                     const double *restrict kd, const double *restrict rest, size_t len,
                                     double *restrict Fk, const bool apart, const int d)
