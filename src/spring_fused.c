@@ -79,9 +79,9 @@ static rows_fn rows_of(const psys_force_class *cls)
 
 /* The fused path runs whenever a system is eligible: it was not slower
  * than the generic one at any size measured, and mostly faster, even in
- * cache (cloth-N, rk4, one
- * thread, AMD EPYC family 26, AVX-512: N = 8 to 256, 1.2 to 3.9 × faster;
- * on an AVX2 family 25 host the two were equal at 100²; bench/README.md).
+ * cache (cloth-N, rk4, one thread, AMD EPYC family 26, AVX-512: N = 8 to
+ * 256, 1.2 to 3.9 × faster; on an AVX2 family 25 host the two were equal
+ * at 100²; bench/README.md).
  * PSYS_FUSED=0 turns it off; PSYS_FUSED=1 also runs small sets on all the
  * evaluation's threads (tests, benchmarks). */
 
