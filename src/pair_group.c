@@ -272,6 +272,234 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
     c->kc = _mm256_set1_pd(p->kc);
     c->radius = _mm256_set1_pd(p->def.radius);
 }
+
+/* ---- Eight rows at a time (AVX-512: AVX512F, VL, DQ) ----
+ * The same scheme with eight lanes: each lane's partner indices and
+ * coordinates come in by gathers (the lists' next entries, then x, y, z of
+ * the component-major copy). Per lane the operations and the order of
+ * group_rows, so the same bits. */
+#define GROUP8 8
+#define AVX512 __attribute__((target("avx512f,avx512vl,avx512dq")))
+
+static bool group8_wanted(void)
+{
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl")
+           && __builtin_cpu_supports("avx512dq") && !getenv("PSYS_GROUP8_OFF");
+}
+
+typedef struct group8_consts {
+    __m512d hl[3], ln[3], fr[3], sign;
+    __m512d rc2, one, two, sig2, lj24, kc, radius;
+} group8_consts;
+
+AVX512 static inline __m512d group8_delta(const group8_consts *c, int k, __m512d e, __mmask8 *far)
+{
+    const __m512d a = _mm512_andnot_pd(c->sign, e);
+    const __m512d near = _mm512_sub_pd(e, _mm512_or_pd(c->ln[k], _mm512_and_pd(c->sign, e)));
+    *far |= _mm512_cmp_pd_mask(a, c->fr[k], _CMP_GE_OQ);
+    return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, c->hl[k], _CMP_GT_OQ), e, near);
+}
+
+AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law, __m512d r2)
+{
+    const __mmask8 in = _mm512_cmp_pd_mask(r2, c->rc2, _CMP_LT_OQ)
+                        & _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ);
+    const __m512d safe = _mm512_mask_blend_pd(in, c->one, r2);
+    __m512d g;
+    if (law == PSYS_PAIR_LENNARD_JONES) {
+        const __m512d ir2 = _mm512_div_pd(c->one, safe), s2 = _mm512_mul_pd(c->sig2, ir2);
+        const __m512d s6 = _mm512_mul_pd(_mm512_mul_pd(s2, s2), s2);
+        g = _mm512_mul_pd(_mm512_mul_pd(_mm512_mul_pd(c->lj24, s6), _mm512_sub_pd(_mm512_mul_pd(c->two, s6), c->one)),
+                          ir2);
+    } else {
+        const __m512d r = _mm512_sqrt_pd(safe), dr = _mm512_sub_pd(c->radius, r);
+        g = _mm512_div_pd(_mm512_mul_pd(c->kc, dr), r);
+    }
+    return _mm512_maskz_mov_pd(in, g);
+}
+
+/* Rows 8b..8b+7 into acc (lane l: row 8b+l); true if a difference was
+ * flagged (the modes of group_rows). */
+AVX512 __attribute__((always_inline)) static inline bool group8_rows(const pair_grid *g, const group8_consts *c,
+                                                                    const int law, const int d, const int mode,
+                                                                    const double *X0, const double *X1,
+                                                                    const double *X2, const double *Q, size_t b,
+                                                                    __m512d acc[3])
+{
+    const size_t i0 = b * GROUP8;
+    const __m512d xi0 = _mm512_loadu_pd(X0 + i0), xi1 = _mm512_loadu_pd(X1 + i0);
+    const __m512d xi2 = d == 3 ? _mm512_loadu_pd(X2 + i0) : _mm512_setzero_pd();
+    __m512d a0 = _mm512_setzero_pd(), a1 = a0, a2 = a0;
+    __mmask8 far = 0;
+    const uint32_t *n = g->nb_num + i0;
+    const uint32_t *L[GROUP8];
+    uint32_t len = 0, full = UINT32_MAX;
+    for (int l = 0; l < GROUP8; l++) {
+        L[l] = g->nb + g->nb_start[i0 + (size_t)l];
+        len = n[l] > len ? n[l] : len;
+        full = n[l] < full ? n[l] : full;
+    }
+    const __m256i num = _mm256_loadu_si256((const __m256i *)n);
+    for (uint32_t k = 0; k < len; k++) {
+        size_t j[GROUP8];
+        if (k < full) {
+            for (int l = 0; l < GROUP8; l++)
+                j[l] = L[l][k];
+        } else { /* a list that has ended: the particle itself, masked below */
+            for (int l = 0; l < GROUP8; l++)
+                j[l] = k < n[l] ? L[l][k] : i0 + (size_t)l;
+        }
+        const __mmask8 live = k < full ? (__mmask8)0xff : _mm256_cmpgt_epi32_mask(num, _mm256_set1_epi32((int)k));
+        /* the eight partners' records (x, y, z, 0), transposed: q0 holds
+         * partners 0 and 2, q1 1 and 3, q2 4 and 6, q3 5 and 7, so that the
+         * 128-bit lanes picked below come out in partner order */
+        const __m512d q0 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * j[0])),
+                                              _mm256_load_pd(Q + 4 * j[2]), 1);
+        const __m512d q1 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * j[1])),
+                                              _mm256_load_pd(Q + 4 * j[3]), 1);
+        const __m512d q2 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * j[4])),
+                                              _mm256_load_pd(Q + 4 * j[6]), 1);
+        const __m512d q3 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * j[5])),
+                                              _mm256_load_pd(Q + 4 * j[7]), 1);
+        const __m512d u0 = _mm512_unpacklo_pd(q0, q1), u1 = _mm512_unpackhi_pd(q0, q1);
+        const __m512d u2 = _mm512_unpacklo_pd(q2, q3), u3 = _mm512_unpackhi_pd(q2, q3);
+        __m512d e0 = _mm512_sub_pd(xi0, _mm512_shuffle_f64x2(u0, u2, 0x88));
+        __m512d e1 = _mm512_sub_pd(xi1, _mm512_shuffle_f64x2(u1, u3, 0x88));
+        __m512d e2 = _mm512_setzero_pd();
+        if (d == 3)
+            e2 = _mm512_sub_pd(xi2, _mm512_shuffle_f64x2(u0, u2, 0xdd));
+        if (mode == GROUP_IMAGE) {
+            e0 = group8_delta(c, 0, e0, &far);
+            e1 = group8_delta(c, 1, e1, &far);
+            if (d == 3)
+                e2 = group8_delta(c, 2, e2, &far);
+        } else if (mode == GROUP_CHECK) {
+            far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e0), c->hl[0], _CMP_GT_OQ);
+            far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e1), c->hl[1], _CMP_GT_OQ);
+            if (d == 3)
+                far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e2), c->hl[2], _CMP_GT_OQ);
+        }
+        __m512d r2 = _mm512_add_pd(_mm512_mul_pd(e0, e0), _mm512_mul_pd(e1, e1));
+        if (d == 3)
+            r2 = _mm512_add_pd(r2, _mm512_mul_pd(e2, e2));
+        const __m512d gg = group8_kernel(c, law, r2);
+        a0 = _mm512_add_pd(a0, _mm512_maskz_mul_pd(live, gg, e0));
+        a1 = _mm512_add_pd(a1, _mm512_maskz_mul_pd(live, gg, e1));
+        if (d == 3)
+            a2 = _mm512_add_pd(a2, _mm512_maskz_mul_pd(live, gg, e2));
+    }
+    acc[0] = a0;
+    acc[1] = a1;
+    acc[2] = a2;
+    return far != 0;
+}
+
+AVX512 static bool group8_rows_as(const pair_grid *g, const group8_consts *c, int law, int d, int mode,
+                                  const double *X0, const double *X1, const double *X2, const double *Q, size_t b,
+                                  __m512d acc[3])
+{
+#define GROUP8_MODES(LAW, D)                                                                      \
+    return mode == GROUP_PLAIN   ? group8_rows(g, c, LAW, D, GROUP_PLAIN, X0, X1, X2, Q, b, acc)     \
+           : mode == GROUP_CHECK ? group8_rows(g, c, LAW, D, GROUP_CHECK, X0, X1, X2, Q, b, acc)     \
+                                 : group8_rows(g, c, LAW, D, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
+    if (law == PSYS_PAIR_LENNARD_JONES) {
+        if (d == 3) {
+            GROUP8_MODES(PSYS_PAIR_LENNARD_JONES, 3)
+        }
+        GROUP8_MODES(PSYS_PAIR_LENNARD_JONES, 2)
+    }
+    if (d == 3) {
+        GROUP8_MODES(PSYS_PAIR_SOFT_REPULSION, 3)
+    }
+    GROUP8_MODES(PSYS_PAIR_SOFT_REPULSION, 2)
+#undef GROUP8_MODES
+}
+
+/* group_interior for rows i0..i0+7. */
+static inline bool group8_interior(const group_consts *c, int d, const double *X0, const double *X1,
+                                   const double *X2, size_t i0)
+{
+    return group_interior(c, d, X0, X1, X2, i0) && group_interior(c, d, X0, X1, X2, i0 + GROUP);
+}
+
+AVX512 static void group8_chunk(const pair_force *p, const pair_image *m, const group_consts *c4,
+                                const group8_consts *c, const double *w, size_t b0, size_t b1,
+                                const unsigned char *rows, double *out)
+{
+    const pair_grid *g = &p->grid;
+    const int d = p->dim, law = p->law;
+    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap, *Q = g->xq;
+    const bool img = m->on;
+    for (size_t b = b0; b < b1; b++) {
+        const size_t i0 = b * GROUP8;
+        if (rows) {
+            bool any = false;
+            for (int l = 0; l < GROUP8; l++)
+                any |= rows[i0 + (size_t)l] != 0;
+            if (!any)
+                continue;
+        }
+        __m512d acc[3];
+        int mode = !img ? GROUP_PLAIN : group8_interior(c4, d, X0, X1, X2, i0) ? GROUP_CHECK : GROUP_IMAGE;
+        bool far = group8_rows_as(g, c, law, d, mode, X0, X1, X2, Q, b, acc);
+        if (far && mode == GROUP_CHECK)
+            far = group8_rows_as(g, c, law, d, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
+        double s[3][GROUP8];
+        for (int k = 0; k < d; k++)
+            _mm512_storeu_pd(s[k], acc[k]);
+        for (int l = 0; l < GROUP8; l++) {
+            const size_t i = i0 + (size_t)l;
+            if (rows && !rows[i])
+                continue;
+            if (far) {
+                group_row_alone(p, m, w, i, out);
+            } else {
+                for (int k = 0; k < d; k++)
+                    out[i * (size_t)d + (size_t)k] = s[k][l];
+            }
+        }
+    }
+}
+
+AVX512 static void group8_consts_of(const group_consts *c4, group8_consts *c)
+{
+    double v[4];
+    for (int k = 0; k < 3; k++) {
+        _mm256_storeu_pd(v, c4->hl[k]);
+        c->hl[k] = _mm512_set1_pd(v[0]);
+        _mm256_storeu_pd(v, c4->ln[k]);
+        c->ln[k] = _mm512_set1_pd(v[0]);
+        _mm256_storeu_pd(v, c4->fr[k]);
+        c->fr[k] = _mm512_set1_pd(v[0]);
+    }
+    c->sign = _mm512_set1_pd(-0.0);
+#define BCAST(F)                      \
+    _mm256_storeu_pd(v, c4->F);       \
+    c->F = _mm512_set1_pd(v[0]);
+    BCAST(rc2)
+    BCAST(one)
+    BCAST(two)
+    BCAST(sig2)
+    BCAST(lj24)
+    BCAST(kc)
+    BCAST(radius)
+#undef BCAST
+}
+
+/* Rows [0, 8·ng8) eight at a time on nt threads. */
+static void group8_forces(const pair_force *p, const pair_image *m, const group_consts *c4, const double *w,
+                          size_t ng8, const unsigned char *rows, double *out, int nt)
+{
+    group8_consts c;
+    group8_consts_of(c4, &c);
+    const size_t nchunks = (ng8 + GROUP_CHUNK - 1) / GROUP_CHUNK;
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
+    for (size_t q = 0; q < nchunks; q++) {
+        const size_t b0 = q * GROUP_CHUNK, b1 = b0 + GROUP_CHUNK < ng8 ? b0 + GROUP_CHUNK : ng8;
+        group8_chunk(p, m, c4, &c, w, b0, b1, rows, out);
+    }
+}
 #endif
 
 bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *w, size_t n,
@@ -294,6 +522,14 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
         Q[4 * i + 1] = X1[i];
         Q[4 * i + 2] = three ? X2[i] : 0.0;
         Q[4 * i + 3] = 0.0;
+    }
+    if (group8_wanted()) { /* eight rows at a time where the CPU can */
+        const size_t ng8 = n / GROUP8;
+        group8_forces(p, m, &c, w, ng8, rows, out, nt);
+        for (size_t i = ng8 * GROUP8; i < n; i++) /* the last n mod 8 rows, one at a time */
+            if (!rows || rows[i])
+                group_row_alone(p, m, w, i, out);
+        return true;
     }
     PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
     for (size_t q = 0; q < nchunks; q++) {
