@@ -19,10 +19,17 @@ foreach(case grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_peri
              minimum_image_far_groups thread_determinism_grid)
   add_test(NAME test_pair.rows.${case} COMMAND test_pair ${case})
 endforeach()
+# And four rows at a time where the CPU would take eight (AVX-512): the same bits.
+foreach(case grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_periodic_3d grid_cache_matches_direct
+             minimum_image_far_groups thread_determinism_grid)
+  add_test(NAME test_pair.group4.${case} COMMAND test_pair ${case})
+endforeach()
 get_property(psys_pair_tests DIRECTORY PROPERTY TESTS)
 foreach(t ${psys_pair_tests})
   if(t MATCHES "^test_pair\\.plain_scan\\.")
     set_tests_properties(${t} PROPERTIES ENVIRONMENT "OMP_WAIT_POLICY=PASSIVE;PSYS_SCAN_PLAIN=1")
+  elseif(t MATCHES "^test_pair\\.group4\\.")
+    set_tests_properties(${t} PROPERTIES ENVIRONMENT "OMP_WAIT_POLICY=PASSIVE;PSYS_GROUP8_OFF=1")
   elseif(t MATCHES "^test_pair\\.rows\\.")
     set_tests_properties(${t} PROPERTIES ENVIRONMENT "OMP_WAIT_POLICY=PASSIVE;PSYS_GROUP_OFF=1")
   elseif(t MATCHES "^test_pair\\.")
