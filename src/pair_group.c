@@ -28,6 +28,7 @@
 #endif
 
 #define GROUP 4
+#define GROUP_MAX 8 /* lanes of the widest loop (AVX-512) */
 #define GROUP_CHUNK 16 /* groups per parallel task */
 
 #if defined(PSYS_GROUP_AVX2)
@@ -98,14 +99,14 @@ AVX2 static inline __m256d group_kernel(const group_consts *c, const int law, __
  * minimum image, flagging |x_i - x_j| of 1.5 boxes or more. */
 enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE };
 
-/* Rows 4b..4b+3 into acc (lane l: row 4b+l; d sums of 4). True if a
+/* Rows 4b..4b+3 into s (s[k][l]: component k of row 4b+l). True if a
  * difference was flagged (see the modes): the caller computes the group
  * again the next way up. */
 AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_grid *g, const group_consts *c,
                                                                   const int law, const int d, const int mode,
                                                                   const double *X0, const double *X1,
                                                                   const double *X2, const double *Q, size_t b,
-                                                                  __m256d acc[3])
+                                                                  double s[3][GROUP_MAX])
 {
     const size_t i0 = b * GROUP;
     const __m256d xi0 = _mm256_loadu_pd(X0 + i0), xi1 = _mm256_loadu_pd(X1 + i0);
@@ -167,83 +168,51 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const pair_gri
         a0 = _mm256_add_pd(a0, c0);
         a1 = _mm256_add_pd(a1, c1);
     }
-    acc[0] = a0;
-    acc[1] = a1;
-    acc[2] = a2;
+    _mm256_storeu_pd(s[0], a0);
+    _mm256_storeu_pd(s[1], a1);
+    _mm256_storeu_pd(s[2], a2);
     return _mm256_movemask_pd(far) != 0;
 }
 
-/* group_rows with the law, dimension and mode as constants. */
+/* FN (group_rows or group8_rows) with the law, dimension and mode as
+ * constants: one inlined copy of the loop for each. */
+#define GROUP_MODES(FN, LAW, D)                                                       \
+    return mode == GROUP_PLAIN   ? FN(g, c, LAW, D, GROUP_PLAIN, X0, X1, X2, Q, b, s) \
+           : mode == GROUP_CHECK ? FN(g, c, LAW, D, GROUP_CHECK, X0, X1, X2, Q, b, s) \
+                                 : FN(g, c, LAW, D, GROUP_IMAGE, X0, X1, X2, Q, b, s);
+#define GROUP_DISPATCH(FN)                                  \
+    if (law == PSYS_PAIR_LENNARD_JONES) {                   \
+        if (d == 3) {                                       \
+            GROUP_MODES(FN, PSYS_PAIR_LENNARD_JONES, 3)     \
+        }                                                   \
+        GROUP_MODES(FN, PSYS_PAIR_LENNARD_JONES, 2)         \
+    }                                                       \
+    if (d == 3) {                                           \
+        GROUP_MODES(FN, PSYS_PAIR_SOFT_REPULSION, 3)        \
+    }                                                       \
+    GROUP_MODES(FN, PSYS_PAIR_SOFT_REPULSION, 2)
+
 AVX2 static bool group_rows_as(const pair_grid *g, const group_consts *c, int law, int d, int mode,
                                const double *X0, const double *X1, const double *X2, const double *Q, size_t b,
-                               __m256d acc[3])
+                               double s[3][GROUP_MAX])
 {
-#define GROUP_MODES(LAW, D)                                                                                  \
-    return mode == GROUP_PLAIN   ? group_rows(g, c, LAW, D, GROUP_PLAIN, X0, X1, X2, Q, b, acc)              \
-           : mode == GROUP_CHECK ? group_rows(g, c, LAW, D, GROUP_CHECK, X0, X1, X2, Q, b, acc)              \
-                                 : group_rows(g, c, LAW, D, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
-    if (law == PSYS_PAIR_LENNARD_JONES) {
-        if (d == 3) {
-            GROUP_MODES(PSYS_PAIR_LENNARD_JONES, 3)
-        }
-        GROUP_MODES(PSYS_PAIR_LENNARD_JONES, 2)
-    }
-    if (d == 3) {
-        GROUP_MODES(PSYS_PAIR_SOFT_REPULSION, 3)
-    }
-    GROUP_MODES(PSYS_PAIR_SOFT_REPULSION, 2)
-#undef GROUP_MODES
+    GROUP_DISPATCH(group_rows)
 }
 
-/* Whether rows i0..i0+3 lie at least the list radius plus twice the skin
- * inside every periodic face: then their partners normally need no image
- * (group_rows checks it). */
+/* Whether rows i0..i0+width-1 lie at least the list radius plus twice the
+ * skin inside every periodic face: then their partners normally need no
+ * image (the group loops check it). */
 static inline bool group_interior(const group_consts *c, int d, const double *X0, const double *X1,
-                                  const double *X2, size_t i0)
+                                  const double *X2, size_t i0, int width)
 {
     const double *X[3] = {X0, X1, X2};
     for (int k = 0; k < d; k++)
-        for (int l = 0; l < GROUP; l++) {
+        for (int l = 0; l < width; l++) {
             const double v = X[k][i0 + (size_t)l];
             if (!(v >= c->inlo[k] && v <= c->inhi[k]))
                 return false;
         }
     return true;
-}
-
-AVX2 static void group_chunk(const pair_force *p, const pair_image *m, const group_consts *c, const double *w,
-                             size_t b0, size_t b1, const unsigned char *rows, double *out)
-{
-    const pair_grid *g = &p->grid;
-    const int d = p->dim, law = p->law;
-    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap, *Q = g->xq;
-    const bool img = m->on;
-    for (size_t b = b0; b < b1; b++) {
-        const size_t i0 = b * GROUP;
-        if (rows && !(rows[i0] | rows[i0 + 1] | rows[i0 + 2] | rows[i0 + 3]))
-            continue;
-        __m256d acc[3];
-        /* groups away from the periodic faces first without the image: only
-         * a flagged group pays for it */
-        int mode = !img ? GROUP_PLAIN : group_interior(c, d, X0, X1, X2, i0) ? GROUP_CHECK : GROUP_IMAGE;
-        bool far = group_rows_as(g, c, law, d, mode, X0, X1, X2, Q, b, acc);
-        if (far && mode == GROUP_CHECK)
-            far = group_rows_as(g, c, law, d, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
-        double s[3][GROUP];
-        for (int k = 0; k < d; k++)
-            _mm256_storeu_pd(s[k], acc[k]);
-        for (int l = 0; l < GROUP; l++) {
-            const size_t i = i0 + (size_t)l;
-            if (rows && !rows[i])
-                continue;
-            if (far) {
-                group_row_alone(p, m, w, i, out);
-            } else {
-                for (int k = 0; k < d; k++)
-                    out[i * (size_t)d + (size_t)k] = s[k][l];
-            }
-        }
-    }
 }
 
 AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group_consts *c)
@@ -318,13 +287,13 @@ AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law
     return _mm512_maskz_mov_pd(in, g);
 }
 
-/* Rows 8b..8b+7 into acc (lane l: row 8b+l); true if a difference was
- * flagged (the modes of group_rows). */
+/* Rows 8b..8b+7 into s (s[k][l]: component k of row 8b+l); true if a
+ * difference was flagged (the modes of group_rows). */
 AVX512 __attribute__((always_inline)) static inline bool group8_rows(const pair_grid *g, const group8_consts *c,
                                                                     const int law, const int d, const int mode,
                                                                     const double *X0, const double *X1,
                                                                     const double *X2, const double *Q, size_t b,
-                                                                    __m512d acc[3])
+                                                                    double s[3][GROUP_MAX])
 {
     const size_t i0 = b * GROUP8;
     const __m512d xi0 = _mm512_loadu_pd(X0 + i0), xi1 = _mm512_loadu_pd(X1 + i0);
@@ -388,77 +357,17 @@ AVX512 __attribute__((always_inline)) static inline bool group8_rows(const pair_
         if (d == 3)
             a2 = _mm512_add_pd(a2, _mm512_maskz_mul_pd(live, gg, e2));
     }
-    acc[0] = a0;
-    acc[1] = a1;
-    acc[2] = a2;
+    _mm512_storeu_pd(s[0], a0);
+    _mm512_storeu_pd(s[1], a1);
+    _mm512_storeu_pd(s[2], a2);
     return far != 0;
 }
 
 AVX512 static bool group8_rows_as(const pair_grid *g, const group8_consts *c, int law, int d, int mode,
                                   const double *X0, const double *X1, const double *X2, const double *Q, size_t b,
-                                  __m512d acc[3])
+                                  double s[3][GROUP_MAX])
 {
-#define GROUP8_MODES(LAW, D)                                                                      \
-    return mode == GROUP_PLAIN   ? group8_rows(g, c, LAW, D, GROUP_PLAIN, X0, X1, X2, Q, b, acc)     \
-           : mode == GROUP_CHECK ? group8_rows(g, c, LAW, D, GROUP_CHECK, X0, X1, X2, Q, b, acc)     \
-                                 : group8_rows(g, c, LAW, D, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
-    if (law == PSYS_PAIR_LENNARD_JONES) {
-        if (d == 3) {
-            GROUP8_MODES(PSYS_PAIR_LENNARD_JONES, 3)
-        }
-        GROUP8_MODES(PSYS_PAIR_LENNARD_JONES, 2)
-    }
-    if (d == 3) {
-        GROUP8_MODES(PSYS_PAIR_SOFT_REPULSION, 3)
-    }
-    GROUP8_MODES(PSYS_PAIR_SOFT_REPULSION, 2)
-#undef GROUP8_MODES
-}
-
-/* group_interior for rows i0..i0+7. */
-static inline bool group8_interior(const group_consts *c, int d, const double *X0, const double *X1,
-                                   const double *X2, size_t i0)
-{
-    return group_interior(c, d, X0, X1, X2, i0) && group_interior(c, d, X0, X1, X2, i0 + GROUP);
-}
-
-AVX512 static void group8_chunk(const pair_force *p, const pair_image *m, const group_consts *c4,
-                                const group8_consts *c, const double *w, size_t b0, size_t b1,
-                                const unsigned char *rows, double *out)
-{
-    const pair_grid *g = &p->grid;
-    const int d = p->dim, law = p->law;
-    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap, *Q = g->xq;
-    const bool img = m->on;
-    for (size_t b = b0; b < b1; b++) {
-        const size_t i0 = b * GROUP8;
-        if (rows) {
-            bool any = false;
-            for (int l = 0; l < GROUP8; l++)
-                any |= rows[i0 + (size_t)l] != 0;
-            if (!any)
-                continue;
-        }
-        __m512d acc[3];
-        int mode = !img ? GROUP_PLAIN : group8_interior(c4, d, X0, X1, X2, i0) ? GROUP_CHECK : GROUP_IMAGE;
-        bool far = group8_rows_as(g, c, law, d, mode, X0, X1, X2, Q, b, acc);
-        if (far && mode == GROUP_CHECK)
-            far = group8_rows_as(g, c, law, d, GROUP_IMAGE, X0, X1, X2, Q, b, acc);
-        double s[3][GROUP8];
-        for (int k = 0; k < d; k++)
-            _mm512_storeu_pd(s[k], acc[k]);
-        for (int l = 0; l < GROUP8; l++) {
-            const size_t i = i0 + (size_t)l;
-            if (rows && !rows[i])
-                continue;
-            if (far) {
-                group_row_alone(p, m, w, i, out);
-            } else {
-                for (int k = 0; k < d; k++)
-                    out[i * (size_t)d + (size_t)k] = s[k][l];
-            }
-        }
-    }
+    GROUP_DISPATCH(group8_rows)
 }
 
 AVX512 static void group8_consts_of(const pair_force *p, const pair_image *m, group8_consts *c)
@@ -480,18 +389,54 @@ AVX512 static void group8_consts_of(const pair_force *p, const pair_image *m, gr
     c->radius = _mm512_set1_pd(p->def.radius);
 }
 
-/* Rows [0, 8·ng8) eight at a time on nt threads. */
-static void group8_forces(const pair_force *p, const pair_image *m, const group_consts *c4, const double *w,
-                          size_t ng8, const unsigned char *rows, double *out, int nt)
+/* The constants of both loops. */
+typedef struct group_ctx {
+    group_consts c4;
+    group8_consts c8;
+} group_ctx;
+
+/* Groups [b0, b1) of `width` rows (GROUP or GROUP8) through their loop;
+ * rows of a group in which a difference was flagged even with the image go
+ * through the row loop one by one. */
+static void group_chunk(const pair_force *p, const pair_image *m, const group_ctx *x, int width, const double *w,
+                        size_t b0, size_t b1, const unsigned char *rows, double *out)
 {
-    group8_consts c;
-    group8_consts_of(p, m, &c);
-    const size_t nchunks = (ng8 + GROUP_CHUNK - 1) / GROUP_CHUNK;
-    (void)nt;
-    PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
-    for (size_t q = 0; q < nchunks; q++) {
-        const size_t b0 = q * GROUP_CHUNK, b1 = b0 + GROUP_CHUNK < ng8 ? b0 + GROUP_CHUNK : ng8;
-        group8_chunk(p, m, c4, &c, w, b0, b1, rows, out);
+    const pair_grid *g = &p->grid;
+    const int d = p->dim, law = p->law;
+    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap, *Q = g->xq;
+    const bool img = m->on;
+    for (size_t b = b0; b < b1; b++) {
+        const size_t i0 = b * (size_t)width;
+        bool any = !rows;
+        for (int l = 0; l < width && !any; l++)
+            any = rows[i0 + (size_t)l] != 0;
+        if (!any)
+            continue;
+        /* groups away from the periodic faces first without the image: only
+         * a flagged group pays for it */
+        int mode = !img                                                 ? GROUP_PLAIN
+                   : group_interior(&x->c4, d, X0, X1, X2, i0, width) ? GROUP_CHECK
+                                                                       : GROUP_IMAGE;
+        double s[3][GROUP_MAX];
+        bool far;
+        for (;;) {
+            far = width == GROUP8 ? group8_rows_as(g, &x->c8, law, d, mode, X0, X1, X2, Q, b, s)
+                                  : group_rows_as(g, &x->c4, law, d, mode, X0, X1, X2, Q, b, s);
+            if (!(far && mode == GROUP_CHECK))
+                break;
+            mode = GROUP_IMAGE;
+        }
+        for (int l = 0; l < width; l++) {
+            const size_t i = i0 + (size_t)l;
+            if (rows && !rows[i])
+                continue;
+            if (far) {
+                group_row_alone(p, m, w, i, out);
+            } else {
+                for (int k = 0; k < d; k++)
+                    out[i * (size_t)d + (size_t)k] = s[k][l];
+            }
+        }
     }
 }
 #endif
@@ -503,9 +448,13 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     const pair_grid *g = &p->grid;
     if (!group_wanted(p))
         return false;
-    group_consts c;
-    group_consts_of(p, m, &c);
-    const size_t ng = n / GROUP, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
+    group_ctx x;
+    group_consts_of(p, m, &x.c4);
+    /* eight rows at a time where the CPU can, else four */
+    const int width = group8_wanted() ? GROUP8 : GROUP;
+    if (width == GROUP8)
+        group8_consts_of(p, m, &x.c8);
+    const size_t ng = n / (size_t)width, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
     const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
     const bool three = p->dim == 3;
     double *Q = g->xq;
@@ -517,21 +466,13 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
         Q[4 * i + 2] = three ? X2[i] : 0.0;
         Q[4 * i + 3] = 0.0;
     }
-    if (group8_wanted()) { /* eight rows at a time where the CPU can */
-        const size_t ng8 = n / GROUP8;
-        group8_forces(p, m, &c, w, ng8, rows, out, nt);
-        for (size_t i = ng8 * GROUP8; i < n; i++) /* the last n mod 8 rows, one at a time */
-            if (!rows || rows[i])
-                group_row_alone(p, m, w, i, out);
-        return true;
-    }
     PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
     for (size_t q = 0; q < nchunks; q++) {
         const size_t b0 = q * GROUP_CHUNK, b1 = b0 + GROUP_CHUNK < ng ? b0 + GROUP_CHUNK : ng;
-        group_chunk(p, m, &c, w, b0, b1, rows, out);
+        group_chunk(p, m, &x, width, w, b0, b1, rows, out);
     }
-    /* the last n mod 4 rows, one at a time */
-    for (size_t i = ng * GROUP; i < n; i++) {
+    /* the last n mod width rows, one at a time */
+    for (size_t i = ng * (size_t)width; i < n; i++) {
         if (!rows || rows[i])
             group_row_alone(p, m, w, i, out);
     }
