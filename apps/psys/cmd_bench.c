@@ -330,10 +330,9 @@ static int cloth_size(const char *name)
 static int run_case(const char *name, const bench_opts *o)
 {
     const char *integ = o->integrator;
-    if (cloth_size(name) > 0) {
-        int n = cloth_size(name);
+    const int n = cloth_size(name);
+    if (n > 0)
         return bench_system(name, build_cloth(n), integ ? integ : "rk4", 1.0 / sqrt(17.6 * 100.0 * (double)n * n), o);
-    }
     if (strcmp(name, "rope-1000000") == 0) {
         double dt = 0;
         psys_system *sys = build_rope(1000000, &dt);
@@ -408,7 +407,7 @@ int cmd_bench(int argc, char **argv)
         known |= strcmp(which, case_names[k]) == 0;
     if (!known) {
         cli_error("bench: unknown case \"%s\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, "
-                  "nbody-4096)",
+                  "nbody-4096; cloth-N for N in 2..4096)",
                   which);
         return EXIT_BAD_INPUT;
     }
