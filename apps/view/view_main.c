@@ -361,6 +361,10 @@ static void key_down(app *a, const SDL_KeyboardEvent *e)
     SDL_Keycode k = e->keysym.sym;
     bool ctrl = (e->keysym.mod & KMOD_CTRL) != 0;
     vw_model *m = &a->m;
+    /* A held key repeats; only stepping and the time step may act again:
+     * a repeated toggle, delete or undo would undo what the press did. */
+    if (e->repeat && (ctrl || (k != SDLK_n && k != SDLK_LEFTBRACKET && k != SDLK_RIGHTBRACKET)))
+        return;
     if (ctrl && k == SDLK_s) {
         save(a);
         return;

@@ -128,7 +128,12 @@ if [ -s saved.json ]; then
     VIEW_PID=$!
     WID=
     if wait_for 60 find_window && [ -n "$WID" ] && wait_for 60 viewable; then
-        x mousemove --sync --window "$WID" 20 700 key g
+        # G held for 0.6 s: the X server (view_x.sh: first repeat after
+        # 100 ms, then one a second) repeats it once, and a held toggle key
+        # must act once (docs/cli.md), so gravity ends up on, not off.
+        x mousemove --sync --window "$WID" 20 700 keydown g
+        sleep 0.6
+        x keyup g
         x mousemove --sync --window "$WID" "$BX" "$BY" key Delete
         x key ctrl+z
         x mousemove --sync --window "$WID" "$SX" "$SY" key Delete
