@@ -2,6 +2,7 @@
 #include "solver.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -180,13 +181,25 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
 {
     if (s->ode.project)
         s->ode.project(s->ode.ctx, t1, y1);
+    /* Whether any component is not finite: its exponent bits are all set,
+     * and only then does adding one to the exponent carry into the sign
+     * bit. AND, ADD and OR vectorize; isfinite's early-out loop does not. */
+    const int nt = psys__solver_threads(s);
+    const uint64_t expo = 0x7ff0000000000000u, one = 0x0010000000000000u;
+    uint64_t any = 0;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && s->n >= PSYS_PAR_MIN) reduction(|: any))
+    for (size_t i = 0; i < s->n; i++) {
+        uint64_t u;
+        memcpy(&u, &y1[i], sizeof u);
+        any |= (u & expo) + one;
+    }
     /* The first non-finite component, whatever the thread count. */
     size_t bad = SIZE_MAX;
-    const int nt = psys__solver_threads(s);
-    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && s->n >= PSYS_PAR_MIN) reduction(min: bad))
-    for (size_t i = 0; i < s->n; i++)
-        if (!isfinite(y1[i]) && i < bad)
+    for (size_t i = 0; (any >> 63) && i < s->n; i++)
+        if (!isfinite(y1[i])) {
             bad = i;
+            break;
+        }
     if (bad != SIZE_MAX) {
         s->bad = bad;
         return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);

@@ -5,6 +5,7 @@
 
 #include <psys/psys.h>
 
+#include <float.h>
 #include <math.h>
 #include <string.h>
 
@@ -831,10 +832,58 @@ static void nonfinite_index_threads(void)
     }
 }
 
+/* The finite check at the end of a step (a bit test on the exponent) takes
+ * the extremes of the finite range and refuses both infinities and a NaN
+ * of either sign, wherever they stand. A zero derivative keeps y0. */
+static psys_status zero_deriv(void *ctx, double t, const double *y, double *yd)
+{
+    (void)t;
+    (void)y;
+    memset(yd, 0, ((const longode *)ctx)->n * sizeof(double));
+    return PSYS_OK;
+}
+
+static void nonfinite_kinds(void)
+{
+    const size_t n = 37;
+    const double finite[] = {DBL_MAX, -DBL_MAX, DBL_MIN, -DBL_MIN, DBL_TRUE_MIN, -0.0, 1e300};
+    const double bad[] = {INFINITY, -INFINITY, NAN, -NAN};
+    const size_t at[] = {0, 17, 36};
+    for (int threads = 1; threads <= 3; threads += 2)
+        for (size_t b = 0; b <= sizeof bad / sizeof bad[0]; b++)
+            for (size_t p = 0; p < (b < sizeof bad / sizeof bad[0] ? sizeof at / sizeof at[0] : 1); p++) {
+                longode o = {n, 0, calloc(n, sizeof(double))};
+                CHECK(o.y != NULL);
+                if (!o.y)
+                    return;
+                for (size_t i = 0; i < n; i++)
+                    o.y[i] = finite[i % (sizeof finite / sizeof finite[0])];
+                const bool expect_bad = b < sizeof bad / sizeof bad[0];
+                if (expect_bad)
+                    o.y[at[p]] = bad[b];
+                psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
+                                .set_time = lo_set_time, .derivative = zero_deriv};
+                psys_solver *s = make_solver("euler", &ode);
+                CHECK(psys_solver_set_threads(s, threads) == PSYS_OK);
+                psys_status st = psys_solver_step(s, 0.05, NULL);
+                if (expect_bad) {
+                    CHECK(st == PSYS_ERR_NONFINITE);
+                    CHECK(psys_solver_bad_component(s) == at[p]);
+                    CHECK(o.t == 0);
+                } else {
+                    CHECK(st == PSYS_OK);
+                    CHECK(o.t == 0.05 && o.y[0] == DBL_MAX && o.y[1] == -DBL_MAX && o.y[4] == DBL_TRUE_MIN);
+                }
+                psys_solver_destroy(s);
+                free(o.y);
+            }
+}
+
 static const check_case cases[] = {
     {"registry", registry},
     {"solver_threads_same_bits", solver_threads_same_bits},
     {"nonfinite_index_threads", nonfinite_index_threads},
+    {"nonfinite_kinds", nonfinite_kinds},
     {"symplectic_needs_second_order", symplectic_needs_second_order},
     {"custom_ode_decay", custom_ode_decay},
     {"custom_ode_symplectic", custom_ode_symplectic},
