@@ -3,33 +3,14 @@
  * Jacobian checker, user functions (analytic and finite-difference J, in a
  * simulation), scene round trips and bad-input messages. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
 #include <math.h>
-#include <stdint.h>
 #include <string.h>
 
 static const double PI = 3.14159265358979323846;
-
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add_particle(psys_system *sys, const double *x, const double *v)
-{
-    size_t i = (size_t)-1;
-    psys_status st = psys_system_add_particle(sys, x, v, 1.0, NULL, &i);
-    CHECK(st == PSYS_OK);
-    return i;
-}
 
 static void add_behavior_ok(psys_system *sys, const psys_behavior_def *def)
 {
@@ -37,17 +18,6 @@ static void add_behavior_ok(psys_system *sys, const psys_behavior_def *def)
     if (st != PSYS_OK)
         fprintf(stderr, "psys_system_add_behavior: %s\n", psys_system_last_error(sys));
     CHECK(st == PSYS_OK);
-}
-
-/* Deterministic uniform numbers in [lo, hi) (xorshift64*). */
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double urand(double lo, double hi)
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    uint64_t r = rng_state * 2685821657736338717ull;
-    return lo + (hi - lo) * ((double)(r >> 11) * (1.0 / 9007199254740992.0));
 }
 
 static psys_behavior_def builtin_def(psys_behavior_function f, int k, const size_t *idx, double ks, double kd)
@@ -83,8 +53,8 @@ static void distance_vs_spring(int dim)
                 x[c] = urand(-2, 2);
                 v[c] = urand(-3, 3);
             }
-            add_particle(sb, x, v);
-            add_particle(ss, x, v);
+            add_particle(sb, x, v, 1.0);
+            add_particle(ss, x, v, 1.0);
         }
         for (int s = 0; s < 20; s++) {
             size_t a = (size_t)(urand(0, N)), b = (size_t)(urand(0, N));
@@ -124,9 +94,9 @@ static void coincide_closed_form(void)
         double v1[3] = {0.5, 2.0, -1.0}, v2[3] = {-1.5, 0.25, 0.75};
         double ks = 7.5, kd = 1.25;
         psys_system *sys = make_system(dim), *spr = make_system(dim);
-        size_t idx[2] = {add_particle(sys, x1, v1), add_particle(sys, x2, v2)};
-        add_particle(spr, x1, v1);
-        add_particle(spr, x2, v2);
+        size_t idx[2] = {add_particle(sys, x1, v1, 1.0), add_particle(sys, x2, v2, 1.0)};
+        add_particle(spr, x1, v1, 1.0);
+        add_particle(spr, x2, v2, 1.0);
         psys_behavior_def def = builtin_def(PSYS_BEHAVIOR_COINCIDE, 2, idx, ks, kd);
         add_behavior_ok(sys, &def);
         CHECK(psys_system_add_spring(spr, 0, 1, ks, kd, 0.0) == PSYS_OK);
@@ -149,10 +119,10 @@ static void coincide_closed_form(void)
         /* ...and agree when kd = 0. */
         sys = make_system(dim);
         spr = make_system(dim);
-        add_particle(sys, x1, v1);
-        add_particle(sys, x2, v2);
-        add_particle(spr, x1, v1);
-        add_particle(spr, x2, v2);
+        add_particle(sys, x1, v1, 1.0);
+        add_particle(sys, x2, v2, 1.0);
+        add_particle(spr, x1, v1, 1.0);
+        add_particle(spr, x2, v2, 1.0);
         def.kd = 0;
         add_behavior_ok(sys, &def);
         CHECK(psys_system_add_spring(spr, 0, 1, ks, 0.0, 0.0) == PSYS_OK);
@@ -171,7 +141,7 @@ static void one_particle_force(int dim, psys_behavior_def def, const double *x, 
 {
     psys_system *sys = make_system(dim);
     def.nparticles = 1;
-    def.particles[0] = add_particle(sys, x, v);
+    def.particles[0] = add_particle(sys, x, v, 1.0);
     add_behavior_ok(sys, &def);
     double f[3];
     psys_system_compute_forces(sys, f);
@@ -235,7 +205,7 @@ static void angle_forces(int dim, const double *x, const double *v, double rest,
     psys_system *sys = make_system(dim);
     size_t idx[3];
     for (int i = 0; i < 3; i++)
-        idx[i] = add_particle(sys, x + i * dim, v ? v + i * dim : NULL);
+        idx[i] = add_particle(sys, x + i * dim, v ? v + i * dim : NULL, 1.0);
     psys_behavior_def def = builtin_def(PSYS_BEHAVIOR_ANGLE, 3, idx, ks, kd);
     def.angle = rest;
     add_behavior_ok(sys, &def);
@@ -324,7 +294,7 @@ static double energy_of(int dim, const double *x, int k, psys_behavior_def def)
     psys_system *sys = make_system(dim);
     def.nparticles = k;
     for (int i = 0; i < k; i++)
-        def.particles[i] = add_particle(sys, x + i * dim, NULL);
+        def.particles[i] = add_particle(sys, x + i * dim, NULL, 1.0);
     add_behavior_ok(sys, &def);
     double u = psys_system_potential_energy(sys);
     psys_system_destroy(sys);
@@ -456,7 +426,7 @@ static void force_jacobian_gauss_newton(void)
     psys_system *sys = make_system(dim);
     double x[9] = {0.3, -0.2, 1.0, 1.4, 0.9, -0.5, -0.8, 0.6, 0.2}, v[9] = {0.1, 0.2, -0.3, 0, 1, 0, -1, 0, 0.5};
     for (int i = 0; i < 3; i++)
-        add_particle(sys, x + 3 * i, v + 3 * i);
+        add_particle(sys, x + 3 * i, v + 3 * i, 1.0);
     psys_behavior_def def = builtin_def(PSYS_BEHAVIOR_ANGLE, 3, (size_t[]){2, 0, 1}, 3.0, 0.7);
     def.angle = 1.0;
     add_behavior_ok(sys, &def);
@@ -478,7 +448,7 @@ static void force_jacobian_gauss_newton(void)
 
     sys = make_system(dim);
     for (int i = 0; i < 3; i++)
-        add_particle(sys, x + 3 * i, v + 3 * i);
+        add_particle(sys, x + 3 * i, v + 3 * i, 1.0);
     def = builtin_def(PSYS_BEHAVIOR_COINCIDE, 2, (size_t[]){0, 2}, 4.0, 1.5);
     add_behavior_ok(sys, &def);
     def = builtin_def(PSYS_BEHAVIOR_POINT_ON_PLANE, 1, (size_t[]){1}, 2.0, 0.5);
@@ -503,8 +473,8 @@ static void degenerate_cases_no_nan(void)
     /* distance with coincident particles */
     psys_system *sys = make_system(3);
     double p[3] = {1, 2, 3}, v1[3] = {1, 0, 0}, v2[3] = {0, 1, 0};
-    add_particle(sys, p, v1);
-    add_particle(sys, p, v2);
+    add_particle(sys, p, v1, 1.0);
+    add_particle(sys, p, v2, 1.0);
     psys_behavior_def def = builtin_def(PSYS_BEHAVIOR_DISTANCE, 2, (size_t[]){0, 1}, 5, 1);
     def.r = 0.5;
     add_behavior_ok(sys, &def);
@@ -519,7 +489,7 @@ static void degenerate_cases_no_nan(void)
     psys_system_destroy(sys);
     /* point-on-sphere at the center */
     sys = make_system(2);
-    add_particle(sys, (double[]){1, 1}, (double[]){3, 4});
+    add_particle(sys, (double[]){1, 1}, (double[]){3, 4}, 1.0);
     def = builtin_def(PSYS_BEHAVIOR_POINT_ON_SPHERE, 1, (size_t[]){0}, 5, 1);
     def.center[0] = 1, def.center[1] = 1;
     def.radius = 2;
@@ -599,7 +569,7 @@ static void fd_jacobian_matches_analytic(void)
     for (int w = 0; w < 2; w++) {
         psys_system *sys = make_system(3);
         for (int i = 0; i < 3; i++)
-            add_particle(sys, x + 3 * i, v + 3 * i);
+            add_particle(sys, x + 3 * i, v + 3 * i, 1.0);
         psys_behavior_def def = psys_behavior_def_default();
         def.nparticles = 3;
         def.particles[0] = 0, def.particles[1] = 1, def.particles[2] = 2;
@@ -635,7 +605,7 @@ static void user_parabola_simulation(void)
     double p = 1.0, track[2][2];
     for (int w = 0; w < 2; w++) {
         psys_system *sys = make_system(2);
-        add_particle(sys, (double[]){0.5, 0.25}, NULL);
+        add_particle(sys, (double[]){0.5, 0.25}, NULL, 1.0);
         CHECK(psys_system_add_gravity(sys, (double[]){0, -9.81}) == PSYS_OK);
         psys_behavior_def def = psys_behavior_def_default();
         def.nparticles = 1;
@@ -689,9 +659,9 @@ static void expect_add_error(psys_system *sys, const psys_behavior_def *def, con
 static void api_validation(void)
 {
     psys_system *sys = make_system(2);
-    add_particle(sys, (double[]){0, 0}, NULL);
-    add_particle(sys, (double[]){1, 0}, NULL);
-    add_particle(sys, (double[]){2, 1}, NULL);
+    add_particle(sys, (double[]){0, 0}, NULL, 1.0);
+    add_particle(sys, (double[]){1, 0}, NULL, 1.0);
+    add_particle(sys, (double[]){2, 1}, NULL, 1.0);
     psys_behavior_def def = builtin_def(PSYS_BEHAVIOR_DISTANCE, 2, (size_t[]){0, 0}, 1, 0);
     expect_add_error(sys, &def, "a behaviour's particles must be different (particle 0 is listed twice)");
     def.particles[1] = 3;

@@ -12,6 +12,7 @@
  * Between collisions only gravity acts, which rk4 integrates exactly, so the
  * only errors left are the collision handling's. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -23,37 +24,6 @@ static const double G = 9.81;
 /* ------------------------------------------------------------------ */
 /* helpers                                                             */
 /* ------------------------------------------------------------------ */
-
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add_particle(psys_system *sys, const double *x, const double *v, double m)
-{
-    size_t i = (size_t)-1;
-    psys_status st = psys_system_add_particle(sys, x, v, m, NULL, &i);
-    CHECK(st == PSYS_OK);
-    return i;
-}
-
-static psys_solver *make_solver(const char *name, psys_system *sys)
-{
-    psys_error err;
-    psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = psys_solver_create(name, &ode, &err);
-    if (!s) {
-        fprintf(stderr, "psys_solver_create(%s): %s\n", name, err.message);
-        exit(1);
-    }
-    return s;
-}
 
 static void add_plane(psys_system *sys, const double *point, const double *normal, double r, double kf, bool stick,
                       psys_response resp)
@@ -89,31 +59,6 @@ static void advance(psys_system *sys, psys_solver *s, double h_max)
     if (st != PSYS_OK)
         fprintf(stderr, "psys_system_advance: %s\n", psys_solver_last_error(s));
     CHECK(ht > 0 && ht <= h_max);
-}
-
-static psys_scene *load(const char *text)
-{
-    psys_error err;
-    psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
-    if (!sc) {
-        fprintf(stderr, "scene failed to load: %s\n", err.message);
-        CHECK(sc != NULL);
-        exit(1);
-    }
-    return sc;
-}
-
-static const char *load_error(const char *text)
-{
-    static psys_error err;
-    psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
-    CHECK(sc == NULL);
-    if (sc) {
-        psys_scene_destroy(sc);
-        return "";
-    }
-    CHECK(err.code == PSYS_ERR_INVALID);
-    return err.message;
 }
 
 static double dotv(const double *a, const double *b, int d)
@@ -547,7 +492,7 @@ static void test_stick_slope(void)
         /* 0: stick at rest, 1: frictionless at rest, 2: stick, launched along the slope */
         snprintf(text, sizeof text, fmt, variant == 2 ? "0.95533648912560598,0.29552020666133955" : "0,0",
                  variant == 1 ? "0" : "\"stick\"");
-        psys_scene *sc = load(text);
+        psys_scene *sc = load_scene(text);
         psys_system *sys = psys_scene_system(sc);
         psys_plane_def def;
         CHECK(psys_system_plane(sys, 0, &def) == PSYS_OK);
@@ -784,11 +729,11 @@ static void test_scene_plane_defaults(void)
     CHECK(d.restitution == 0.5 && d.friction == 0 && !d.stick && d.response == PSYS_RESPONSE_ROLLBACK);
     CHECK(d.normal[0] == 0 && d.normal[1] == 1 && d.normal[2] == 0);
 
-    psys_scene *sc = load("{\"psys\":1,\"dim\":2,\"particles\":[{\"x\":[0,1]}],\"planes\":["
-                          "{\"point\":[0,-2],\"normal\":[0,2]},"
-                          "{\"point\":[1,1],\"normal\":[-3,-4],\"restitution\":1,\"friction\":0.25,"
-                          "\"response\":\"displace\"},"
-                          "{\"point\":[0,0],\"normal\":[5,0],\"restitution\":0,\"friction\":\"stick\"}]}");
+    psys_scene *sc = load_scene("{\"psys\":1,\"dim\":2,\"particles\":[{\"x\":[0,1]}],\"planes\":["
+                                "{\"point\":[0,-2],\"normal\":[0,2]},"
+                                "{\"point\":[1,1],\"normal\":[-3,-4],\"restitution\":1,\"friction\":0.25,"
+                                "\"response\":\"displace\"},"
+                                "{\"point\":[0,0],\"normal\":[5,0],\"restitution\":0,\"friction\":\"stick\"}]}");
     psys_system *sys = psys_scene_system(sc);
     CHECK(psys_system_plane_count(sys) == 3);
     psys_plane_def p;
@@ -806,7 +751,7 @@ static void test_scene_plane_defaults(void)
     CHECK(psys_system_plane(sys, 3, &p) == PSYS_ERR_INVALID);
     psys_scene_destroy(sc);
 
-    sc = load("{\"psys\":1,\"particles\":[{\"x\":[0,1,0]}],\"planes\":[{\"point\":[0,0,0],\"normal\":[1,2,2]}]}");
+    sc = load_scene("{\"psys\":1,\"particles\":[{\"x\":[0,1,0]}],\"planes\":[{\"point\":[0,0,0],\"normal\":[1,2,2]}]}");
     CHECK(psys_system_plane(psys_scene_system(sc), 0, &p) == PSYS_OK);
     CHECK_NEAR(p.normal[0], 1.0 / 3, 1e-16);
     CHECK_NEAR(p.normal[1], 2.0 / 3, 1e-16);
@@ -861,22 +806,12 @@ static void test_scene_plane_bad_inputs(void)
     CHECK_STR(load_error(PL "7]}"), "planes[0]: a plane must be an object (got 7)");
 }
 
-static char *save(psys_scene *sc)
-{
-    psys_error err;
-    char *text = psys_scene_to_string(sc, NULL, &err);
-    if (!text)
-        fprintf(stderr, "psys_scene_to_string: %s\n", err.message);
-    CHECK(text != NULL);
-    return text;
-}
-
 static void plane_round_trip(const char *text)
 {
-    psys_scene *a = load(text);
-    char *s1 = save(a);
-    psys_scene *b = load(s1);
-    char *s2 = save(b);
+    psys_scene *a = load_scene(text);
+    char *s1 = save_scene(a);
+    psys_scene *b = load_scene(s1);
+    char *s2 = save_scene(b);
     CHECK_STR(s2, s1);
     psys_system *sa = psys_scene_system(a), *sb = psys_scene_system(b);
     CHECK(psys_system_plane_count(sa) == psys_system_plane_count(sb));

@@ -7,6 +7,7 @@
  * and the ERRATA point that velocity-dependent forces must see the
  * controller's velocity at every stage time. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -17,63 +18,6 @@
 /* ------------------------------------------------------------------ */
 /* helpers                                                             */
 /* ------------------------------------------------------------------ */
-
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add_particle(psys_system *sys, const double *x, const double *v, double m)
-{
-    size_t i = (size_t)-1;
-    psys_status st = psys_system_add_particle(sys, x, v, m, NULL, &i);
-    CHECK(st == PSYS_OK);
-    return i;
-}
-
-static psys_solver *make_solver(const char *name, psys_system *sys)
-{
-    psys_error err;
-    psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = psys_solver_create(name, &ode, &err);
-    if (!s) {
-        fprintf(stderr, "psys_solver_create(%s): %s\n", name, err.message);
-        exit(1);
-    }
-    return s;
-}
-
-static psys_scene *load(const char *text)
-{
-    psys_error err;
-    psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
-    if (!sc) {
-        fprintf(stderr, "scene failed to load: %s\n", err.message);
-        CHECK(sc != NULL);
-        exit(1);
-    }
-    return sc;
-}
-
-/* The message a bad scene is rejected with ("" if it loaded). */
-static const char *load_error(const char *text)
-{
-    static psys_error err;
-    psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
-    CHECK(sc == NULL);
-    if (sc) {
-        psys_scene_destroy(sc);
-        return "";
-    }
-    CHECK(err.code == PSYS_ERR_INVALID);
-    return err.message;
-}
 
 static void circle_at(int d, const double *c, double R, double w, double ph, const double *u, const double *wv,
                       double t, double *x, double *v)
@@ -238,7 +182,7 @@ static psys_scene *driven_scene(const char *integrator, int dim, const char *con
                  "\"forces\":[{\"type\":\"spring\",\"a\":\"p\",\"b\":\"m\",\"ks\":30,\"kd\":0.8,\"rest\":1.5},"
                  "{\"type\":\"gravity\",\"g\":[0,-9.81,0]}]}",
                  integrator, control);
-    return load(text);
+    return load_scene(text);
 }
 
 static void run_and_check(const char *integrator, int dim, const char *control, ctl_expect *e)
@@ -763,7 +707,7 @@ static void test_callback_stage_times(void)
 
 static void test_callback_scene_unsaveable(void)
 {
-    psys_scene *sc = load("{\"psys\":1,\"dim\":2,\"particles\":[{\"id\":\"a\",\"x\":[1,0]},{\"x\":[0,0]}]}");
+    psys_scene *sc = load_scene("{\"psys\":1,\"dim\":2,\"particles\":[{\"id\":\"a\",\"x\":[1,0]},{\"x\":[0,0]}]}");
     cb_rec rec = {.c = {0, 0}, .R = 1, .w = 1, .ph = 0};
     psys_system *sys = psys_scene_system(sc);
     CHECK(psys_system_control_callback(sys, 1, NULL, NULL) == PSYS_ERR_INVALID);
@@ -1047,16 +991,6 @@ static const char scene3d[] =
     "{\"type\":\"mouse-spring\",\"particle\":\"p\",\"ks\":20,\"kd\":1,\"target\":[0.3,0.7,0.1]},"
     "{\"type\":\"mouse-spring\",\"particle\":\"p\",\"ks\":15,\"kd\":2,\"path\":[[0,0,0,0],[0.1,0.5,1.5,1]]}]}";
 
-static char *save(psys_scene *sc)
-{
-    psys_error err;
-    char *text = psys_scene_to_string(sc, NULL, &err);
-    if (!text)
-        fprintf(stderr, "psys_scene_to_string: %s\n", err.message);
-    CHECK(text != NULL);
-    return text;
-}
-
 static void run_to_end(psys_scene *sc)
 {
     psys_error err;
@@ -1072,14 +1006,14 @@ static void run_to_end(psys_scene *sc)
 
 static void round_trip(const char *text, size_t want_mice)
 {
-    psys_scene *a = load(text);
-    char *s1 = save(a);
+    psys_scene *a = load_scene(text);
+    char *s1 = save_scene(a);
     if (!s1) {
         psys_scene_destroy(a);
         return;
     }
-    psys_scene *b = load(s1);
-    char *s2 = save(b);
+    psys_scene *b = load_scene(s1);
+    char *s2 = save_scene(b);
     CHECK_STR(s2, s1);
     if (s2 && strcmp(s1, s2) != 0) {
         /* show the first differing line */
@@ -1155,7 +1089,7 @@ static void test_scene_round_trip_tilted(void)
 /* The scene's controllers are the ones of DESIGN §3a (loaded values). */
 static void test_scene_control_values(void)
 {
-    psys_scene *sc = load(scene2d);
+    psys_scene *sc = load_scene(scene2d);
     psys_system *sys = psys_scene_system(sc);
     const double *X = psys_system_positions(sys), *V = psys_system_velocities(sys);
     const double t = 0.0625;

@@ -2,30 +2,13 @@
  * gravity and drag, custom force classes, and force Jacobians (analytic
  * against central finite differences). */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
-
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add_particle(psys_system *sys, const double *x, const double *v, double m)
-{
-    size_t i = (size_t)-1;
-    CHECK(psys_system_add_particle(sys, x, v, m, NULL, &i) == PSYS_OK);
-    return i;
-}
 
 /* Eq. 1 as in ERRATA, computed independently of the library:
  * f_a = -[ks(|l| - r) + kd (l̇·l)/|l|] l/|l|, f_b = -f_a. */

@@ -10,6 +10,7 @@
  *   - stability where explicit solvers blow up (stiff spring, 20×20 cloth);
  *   - the conjugate-gradient settings, counters and scene keys. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -33,18 +34,8 @@
 #define SANITIZED 0
 #endif
 
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add_particle(psys_system *sys, const double *x, const double *v, double m)
+/* Unlike helpers.h's add_particle, stops the test at once, as add_spring does. */
+static size_t add_particle_or_exit(psys_system *sys, const double *x, const double *v, double m)
 {
     size_t i = (size_t)-1;
     if (psys_system_add_particle(sys, x, v, m, NULL, &i) != PSYS_OK) {
@@ -60,18 +51,6 @@ static void add_spring(psys_system *sys, size_t a, size_t b, double ks, double k
         fprintf(stderr, "add_spring: %s\n", psys_system_last_error(sys));
         exit(1);
     }
-}
-
-static psys_solver *make_solver(psys_system *sys, const char *name)
-{
-    psys_ode ode = psys_system_ode(sys);
-    psys_error err;
-    psys_solver *s = psys_solver_create(name, &ode, &err);
-    if (!s) {
-        fprintf(stderr, "psys_solver_create(%s): %s\n", name, err.message);
-        exit(1);
-    }
-    return s;
 }
 
 /* One step that must succeed (prints the solver's message otherwise). */
@@ -238,7 +217,7 @@ static void spring_system(psys_system *sys)
     const double x[5][3] = {{0, 0, 0}, {1.1, 0.2, -0.1}, {0.3, 0.9, 0.4}, {-0.5, 0.4, 1.0}, {0.6, -0.7, 0.8}};
     const double v[5][3] = {{0, 0, 0}, {0.7, -1.2, 0.4}, {-0.5, 0.3, 0.9}, {1.1, 0.6, -0.8}, {-0.2, -0.9, 0.3}};
     for (int i = 0; i < 5; i++)
-        add_particle(sys, x[i], v[i], 0.5 + 0.25 * i);
+        add_particle_or_exit(sys, x[i], v[i], 0.5 + 0.25 * i);
     CHECK(psys_system_set_fixed(sys, 0, true) == PSYS_OK);
     add_spring(sys, 0, 1, 40, 1.5, 0.7);  /* stretched */
     add_spring(sys, 1, 2, 25, 2.0, 1.6);  /* compressed */
@@ -276,8 +255,8 @@ static void jacobian_drag_mouse_gravity(void)
         psys_system *sys = make_system(dim);
         const double x0[3] = {0.3, -0.4, 0.2}, v0[3] = {1.5, -0.7, 0.4};
         const double x1[3] = {-1.0, 0.5, 0.7}, v1[3] = {-0.3, 0.2, -1.1};
-        add_particle(sys, x0, v0, 0.7);
-        add_particle(sys, x1, v1, 2.0);
+        add_particle_or_exit(sys, x0, v0, 0.7);
+        add_particle_or_exit(sys, x1, v1, 2.0);
         const double g[3] = {0.5, -9.81, 1.2};
         const size_t nd = (size_t)(2 * dim);
         double jx[36], jv[36], fx[36], fv[36];
@@ -325,7 +304,7 @@ static void jacobian_behaviors_affine(void)
         const double vs[3][3] = {{0.4, 1.1, -0.3}, {-0.9, 0.2, 0.6}, {0.3, -0.5, 0.8}};
         psys_system *sys = make_system(dim);
         for (int i = 0; i < 3; i++)
-            add_particle(sys, xs[i], vs[i], 1.0 + i);
+            add_particle_or_exit(sys, xs[i], vs[i], 1.0 + i);
         psys_behavior_def c = psys_behavior_def_default();
         c.function = PSYS_BEHAVIOR_COINCIDE;
         c.nparticles = 2;
@@ -355,8 +334,8 @@ static void jacobian_behaviors_affine(void)
 
         /* distance at its target length with no relative motion: exact */
         sys = make_system(dim);
-        add_particle(sys, xs[0], vs[0], 1.0);
-        add_particle(sys, xs[1], vs[0], 2.0); /* same velocity: Ċ = 0 */
+        add_particle_or_exit(sys, xs[0], vs[0], 1.0);
+        add_particle_or_exit(sys, xs[1], vs[0], 2.0); /* same velocity: Ċ = 0 */
         psys_behavior_def q = psys_behavior_def_default();
         q.function = PSYS_BEHAVIOR_DISTANCE;
         q.nparticles = 2;
@@ -371,8 +350,8 @@ static void jacobian_behaviors_affine(void)
 
         /* distance stretched and moving: dense + missing term = finite differences */
         sys = make_system(dim);
-        add_particle(sys, xs[0], vs[0], 1.0);
-        add_particle(sys, xs[1], vs[1], 2.0);
+        add_particle_or_exit(sys, xs[0], vs[0], 1.0);
+        add_particle_or_exit(sys, xs[1], vs[1], 2.0);
         q.r = 0.6;
         CHECK(psys_system_add_behavior(sys, &q) == PSYS_OK);
         size_t nd = (size_t)(2 * dim);
@@ -430,8 +409,8 @@ static void jacobian_missing_is_explicit(void)
         const double g[3] = {0.5, -9.81, 1.2};
         for (int k = 0; k < 2; k++) {
             sys[k] = make_system(dim);
-            add_particle(sys[k], x0, v0, 0.7);
-            add_particle(sys[k], x1, v1, 2.0);
+            add_particle_or_exit(sys[k], x0, v0, 0.7);
+            add_particle_or_exit(sys[k], x1, v1, 2.0);
             double *kk = malloc(sizeof *kk);
             *kk = 900; /* stiff: ω h = 0.36 at h = 0.01 */
             CHECK(psys_system_add_force(sys[k], &nojac_class, kk) == PSYS_OK);
@@ -439,8 +418,8 @@ static void jacobian_missing_is_explicit(void)
         }
         double jx[36], jv[36];
         CHECK(psys_system_dense_jacobian(sys[0], jx, jv) == PSYS_ERR_UNSUPPORTED);
-        psys_solver *imp = make_solver(sys[0], "implicit-euler");
-        psys_solver *sym = make_solver(sys[1], "symplectic-euler");
+        psys_solver *imp = make_solver("implicit-euler", sys[0]);
+        psys_solver *sym = make_solver("symplectic-euler", sys[1]);
         size_t nd = ncomp(sys[0]);
         double worst = 0, scale = 0;
         for (int s = 0; s < 20; s++) {
@@ -474,13 +453,13 @@ static void closed_form_linear_spring(void)
         const double ks = 50, c = 0.6, r = 1.0, m = 0.8, h = 0.02, gx = 30;
         psys_system *sys = make_system(dim);
         const double xa[3] = {0, 0, 0}, xb[3] = {1.6, 0, 0}, vb[3] = {-0.9, 0, 0}, g[3] = {gx, 0, 0};
-        add_particle(sys, xa, NULL, 1);
-        add_particle(sys, xb, vb, m);
+        add_particle_or_exit(sys, xa, NULL, 1);
+        add_particle_or_exit(sys, xb, vb, m);
         CHECK(psys_system_set_fixed(sys, 0, true) == PSYS_OK);
         add_spring(sys, 0, 1, ks, 0, r);
         CHECK(psys_system_add_drag(sys, c) == PSYS_OK);
         CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
-        psys_solver *s = make_solver(sys, "implicit-euler");
+        psys_solver *s = make_solver("implicit-euler", sys);
         double x = xb[0], v = vb[0], worst = 0;
         for (int n = 0; n < 50; n++) {
             double det = (m + h * c) + h * h * ks; /* | 1  -h ; h ks  m + h c | */
@@ -513,9 +492,9 @@ static void closed_form_mouse_spring(void)
         const double ks = 250, kd = 1.5, m = 0.3, h = 0.01;
         const double p[3] = {0.5, -1.0, 2.0}, x0[3] = {1.3, 0.4, -0.6}, v0[3] = {-2.0, 1.1, 0.7};
         psys_system *sys = make_system(dim);
-        add_particle(sys, x0, v0, m);
+        add_particle_or_exit(sys, x0, v0, m);
         CHECK(psys_system_add_mouse_spring(sys, 0, p, ks, kd, NULL) == PSYS_OK);
-        psys_solver *s = make_solver(sys, "implicit-euler");
+        psys_solver *s = make_solver("implicit-euler", sys);
         double x[3], v[3], worst = 0;
         memcpy(x, x0, sizeof x);
         memcpy(v, v0, sizeof v);
@@ -542,10 +521,10 @@ static void free_fall(void)
         const double g[3] = {0.3, -9.81, 1.7}, h = 0.01;
         const double x0[3] = {0.2, 5.0, -1.0}, v0[3] = {1.0, 2.0, -0.5};
         psys_system *sys = make_system(dim);
-        add_particle(sys, x0, v0, 0.37);
-        add_particle(sys, x0, NULL, 12.5);
+        add_particle_or_exit(sys, x0, v0, 0.37);
+        add_particle_or_exit(sys, x0, NULL, 12.5);
         CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
-        psys_solver *s = make_solver(sys, "implicit-euler");
+        psys_solver *s = make_solver("implicit-euler", sys);
         for (int n = 1; n <= 100; n++) {
             double xp[6], vp[6];
             get_state(sys, xp, vp);
@@ -582,7 +561,7 @@ static void step_matches_dense_solve(void)
             const double x[5][3] = {{0, 0, 0}, {1.1, 0.2, -0.1}, {2.3, 0.9, 0.4}, {1.5, 1.6, 1.0}, {0.6, 1.2, 0.8}};
             const double v[5][3] = {{0, 0, 0}, {0.7, -1.2, 0.4}, {-0.5, 0.3, 0.9}, {1.1, 0.6, -0.8}, {-0.2, -0.9, 0.3}};
             for (int i = 0; i < 5; i++)
-                add_particle(sys, x[i], damped ? NULL : v[i], 0.5 + 0.25 * i);
+                add_particle_or_exit(sys, x[i], damped ? NULL : v[i], 0.5 + 0.25 * i);
             CHECK(psys_system_set_fixed(sys, 0, true) == PSYS_OK);
             const double kd = damped ? 2.0 : 0.0;
             add_spring(sys, 0, 1, 40, kd, 0.7);
@@ -613,7 +592,7 @@ static void step_matches_dense_solve(void)
             an.kd = 0.4;
             an.angle = 1.0;
             CHECK(psys_system_add_behavior(sys, &an) == PSYS_OK);
-            psys_solver *s = make_solver(sys, "implicit-euler");
+            psys_solver *s = make_solver("implicit-euler", sys);
             CHECK(psys_solver_set_cg(s, 1e-14, 1000) == PSYS_OK);
             size_t nd = ncomp(sys);
             int steps = damped ? 1 : 10;
@@ -687,7 +666,7 @@ static void definite_approximation(void)
         double rx[MAXN], rv[MAXN], ex_x[MAXN], ex_v[MAXN];
         reference_step(sys, 0.05, dx, dv, rx, rv);
         reference_step(sys, 0.05, NULL, NULL, ex_x, ex_v); /* exact Jacobian */
-        psys_solver *s = make_solver(sys, "implicit-euler");
+        psys_solver *s = make_solver("implicit-euler", sys);
         CHECK(psys_solver_set_cg(s, 1e-14, 1000) == PSYS_OK);
         CHECK(step_ok(s, 0.05));
         double e = max_diff(psys_system_velocities(sys), rv, nd) / (1 + max_abs(rv, nd));
@@ -709,10 +688,10 @@ static void pattern_rebuild(void)
     psys_system *sys = make_system(3);
     const double x[4][3] = {{0, 0, 0}, {1.2, 0, 0}, {0, 1.3, 0}, {1.4, 1.5, 0.2}};
     for (int i = 0; i < 4; i++)
-        add_particle(sys, x[i], NULL, 1.0);
+        add_particle_or_exit(sys, x[i], NULL, 1.0);
     add_spring(sys, 0, 1, 300, 0, 1.0);
     add_spring(sys, 2, 3, 300, 0, 1.0);
-    psys_solver *s = make_solver(sys, "implicit-euler");
+    psys_solver *s = make_solver("implicit-euler", sys);
     CHECK(psys_solver_set_cg(s, 1e-14, 1000) == PSYS_OK);
     for (int n = 0; n < 3; n++)
         CHECK(step_ok(s, 0.01));
@@ -762,7 +741,7 @@ static void fixed_particles_bit_identical(void)
         CHECK(psys_system_add_mouse_spring(sys, 7, g, 1e3, 1, &handle) == PSYS_OK); /* pulls on a pin */
         double x0[MAXN], v0[MAXN];
         get_state(sys, x0, v0);
-        psys_solver *s = make_solver(sys, "implicit-euler");
+        psys_solver *s = make_solver("implicit-euler", sys);
         for (int n = 0; n < 100; n++) {
             CHECK(step_ok(s, 0.02));
             const double *x = psys_system_positions(sys), *v = psys_system_velocities(sys);
@@ -786,12 +765,12 @@ static void driven_run(const char *solver, double h, double T, double *x_out, do
     psys_system *sys = make_system(2);
     const double c[2] = {0.2, -0.1}, R = 0.5, w = 3.0, ph = 0.4;
     const double xf[2] = {0.2 + 1.4, -0.1};
-    add_particle(sys, c, NULL, 1.0);
-    add_particle(sys, xf, NULL, 1.0);
+    add_particle_or_exit(sys, c, NULL, 1.0);
+    add_particle_or_exit(sys, xf, NULL, 1.0);
     CHECK(psys_system_control_circle(sys, 0, c, R, w, ph, NULL) == PSYS_OK);
     add_spring(sys, 0, 1, 20, 0.5, 1.0);
     CHECK(psys_system_add_drag(sys, 0.1) == PSYS_OK);
-    psys_solver *s = make_solver(sys, solver);
+    psys_solver *s = make_solver(solver, sys);
     int n = (int)lround(T / h);
     for (int k = 0; k < n; k++) {
         CHECK(step_ok(s, h));
@@ -836,10 +815,10 @@ static void momentum_conserved(void)
     const double xa[3] = {0, 0, 0}, xb[3] = {1.3, 0.2, -0.4};
     const double va[3] = {0.3, -1.0, 0.2}, vb[3] = {-0.5, 0.4, 1.0};
     const double ma = 1.0, mb = 2.5;
-    add_particle(sys, xa, va, ma);
-    add_particle(sys, xb, vb, mb);
+    add_particle_or_exit(sys, xa, va, ma);
+    add_particle_or_exit(sys, xb, vb, mb);
     add_spring(sys, 0, 1, 5e3, 3.0, 1.0);
-    psys_solver *s = make_solver(sys, "implicit-euler");
+    psys_solver *s = make_solver("implicit-euler", sys);
     CHECK(psys_solver_set_cg(s, 1e-14, 1000) == PSYS_OK);
     double p0[3], worst = 0;
     for (int k = 0; k < 3; k++)
@@ -867,8 +846,8 @@ static psys_system *pendulum(void)
 {
     psys_system *sys = make_system(2);
     const double a[2] = {0, 0}, b[2] = {1.3, 0};
-    add_particle(sys, a, NULL, 1);
-    add_particle(sys, b, NULL, 1);
+    add_particle_or_exit(sys, a, NULL, 1);
+    add_particle_or_exit(sys, b, NULL, 1);
     CHECK(psys_system_set_fixed(sys, 0, true) == PSYS_OK);
     add_spring(sys, 0, 1, 30, 0, 1.0);
     const double g[2] = {0, -9.81};
@@ -906,7 +885,7 @@ static void run_to(psys_system *(*make)(void), const char *solver, double h, dou
                    double *min_stretch)
 {
     psys_system *sys = make();
-    psys_solver *s = make_solver(sys, solver);
+    psys_solver *s = make_solver(solver, sys);
     int n = (int)lround(T / h);
     double ms = INFINITY;
     int dim = psys_system_dim(sys);
@@ -982,11 +961,11 @@ static void stiff_spring(void)
     for (int implicit = 1; implicit >= 0; implicit--) {
         psys_system *sys = make_system(2);
         const double a[2] = {0, 0}, b[2] = {1.1, 0}, vb[2] = {3.0, 0};
-        add_particle(sys, a, NULL, 1);
-        add_particle(sys, b, vb, 1);
+        add_particle_or_exit(sys, a, NULL, 1);
+        add_particle_or_exit(sys, b, vb, 1);
         CHECK(psys_system_set_fixed(sys, 0, true) == PSYS_OK);
         add_spring(sys, 0, 1, 1e6, 0, 1.0);
-        psys_solver *s = make_solver(sys, implicit ? "implicit-euler" : "rk4");
+        psys_solver *s = make_solver(implicit ? "implicit-euler" : "rk4", sys);
         double e0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys), e = e0;
         if (implicit) {
             for (int n = 0; n < 300; n++) {
@@ -1079,7 +1058,7 @@ static void cloth_hangs_and_settles(void)
     memcpy(pins, psys_system_positions(sys), 3 * sizeof(double));
     memcpy(pins + 3, psys_system_positions(sys) + 19 * 3, 3 * sizeof(double));
     double e0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
-    psys_solver *s = make_solver(sys, "implicit-euler");
+    psys_solver *s = make_solver("implicit-euler", sys);
     double peak = 0, last_second = 0, emax = -INFINITY;
     const int steps = CLOTH_STEPS;
     for (int k = 0; k < steps; k++) {
@@ -1128,7 +1107,7 @@ static void cloth_hangs_and_settles(void)
 static void cloth_rk4_fails(void)
 {
     psys_system *sys = big_cloth();
-    psys_solver *s = make_solver(sys, "rk4");
+    psys_solver *s = make_solver("rk4", sys);
     psys_status st = PSYS_OK;
     int k = 0;
     while (k < 60 && (st = psys_solver_step(s, 1.0 / 60, NULL)) == PSYS_OK)
@@ -1150,7 +1129,7 @@ static void cloth_rk4_fails(void)
 static void cg_settings(void)
 {
     psys_system *sys = pendulum();
-    psys_solver *s = make_solver(sys, "implicit-euler");
+    psys_solver *s = make_solver("implicit-euler", sys);
     const char *msg = "CG tolerance must be > 0 and the iteration cap >= 1";
     CHECK(psys_solver_set_cg(s, 0, 10) == PSYS_ERR_INVALID);
     CHECK_STR(psys_solver_last_error(s), msg);
@@ -1171,7 +1150,7 @@ static void cg_settings(void)
     CHECK(psys_solver_set_cg(s, 1e-3, 1) == PSYS_OK);
     psys_solver_destroy(s);
     /* explicit solvers accept the call and never count iterations */
-    s = make_solver(sys, "rk4");
+    s = make_solver("rk4", sys);
     CHECK(step_ok(s, 0.01));
     CHECK(psys_solver_cg_iterations(s) == 0 && psys_solver_cg_unconverged(s) == 0);
     psys_solver_destroy(s);
@@ -1185,7 +1164,7 @@ static void cg_settings(void)
 static void cg_cap_unconverged(void)
 {
     psys_system *sys = cloth_n(10);
-    psys_solver *s = make_solver(sys, "implicit-euler");
+    psys_solver *s = make_solver("implicit-euler", sys);
     CHECK(psys_solver_set_cg(s, 1e-6, 1) == PSYS_OK);
     const int steps = 20;
     for (int k = 0; k < steps; k++)

@@ -4,6 +4,7 @@
  * determinism, Barnes–Hut error against theta, Kepler and figure-eight orbits
  * with rk45, Jacobians, scene round trips and bad-input messages. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -13,25 +14,6 @@
 
 static const double PI = 3.14159265358979323846;
 
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add(psys_system *sys, const double *x, const double *v, double m)
-{
-    size_t i = (size_t)-1;
-    psys_status st = psys_system_add_particle(sys, x, v, m, NULL, &i);
-    CHECK(st == PSYS_OK);
-    return i;
-}
-
 static size_t add_pair(psys_system *sys, const psys_pair_def *def)
 {
     size_t k = (size_t)-1;
@@ -40,17 +22,6 @@ static size_t add_pair(psys_system *sys, const psys_pair_def *def)
         fprintf(stderr, "psys_system_add_pair: %s\n", psys_system_last_error(sys));
     CHECK(st == PSYS_OK);
     return k;
-}
-
-/* Deterministic uniform numbers in [lo, hi) (xorshift64*). */
-static uint64_t rng_state = 0x9E3779B97F4A7C15ull;
-static double urand(double lo, double hi)
-{
-    rng_state ^= rng_state >> 12;
-    rng_state ^= rng_state << 25;
-    rng_state ^= rng_state >> 27;
-    uint64_t r = rng_state * 2685821657736338717ull;
-    return lo + (hi - lo) * ((double)(r >> 11) * (1.0 / 9007199254740992.0));
 }
 
 static double *forces_of(psys_system *sys)
@@ -68,8 +39,8 @@ static void two_body(int dim, const psys_pair_def *def, double r, double m0, dou
 {
     psys_system *sys = make_system(dim);
     double a[3] = {0.25, -0.5, 0.125}, b[3] = {0.25 + r, -0.5, 0.125};
-    add(sys, a, NULL, m0);
-    add(sys, b, NULL, m1);
+    add_particle(sys, a, NULL, m0);
+    add_particle(sys, b, NULL, m1);
     if (q0 != 0 || q1 != 0) {
         CHECK(psys_system_set_charge(sys, 0, q0) == PSYS_OK);
         CHECK(psys_system_set_charge(sys, 1, q1) == PSYS_OK);
@@ -276,7 +247,7 @@ static psys_system *random_cloud(int dim, size_t n, double size, bool masses, bo
             x[k] = urand(0, size);
             v[k] = urand(-0.1, 0.1);
         }
-        add(sys, x, v, masses ? urand(0.5, 2) : 1.0);
+        add_particle(sys, x, v, masses ? urand(0.5, 2) : 1.0);
         if (charges)
             CHECK(psys_system_set_charge(sys, i, urand(-1, 1)) == PSYS_OK);
     }
@@ -296,7 +267,7 @@ static psys_system *jittered_lattice(int dim, size_t n, double spacing, double j
             c /= side;
             v[k] = urand(-0.1, 0.1);
         }
-        add(sys, x, v, urand(0.5, 2));
+        add_particle(sys, x, v, urand(0.5, 2));
         if (charges)
             CHECK(psys_system_set_charge(sys, i, urand(-1, 1)) == PSYS_OK);
     }
@@ -363,7 +334,7 @@ static void lj_cluster_energy(void)
     double e_first = 0;
     double *x_by_method[2] = {NULL, NULL};
     for (int method = 0; method < 2; method++) {
-        rng_state = 12345;
+        urand_seed(12345);
         psys_system *sys = make_system(3);
         for (int a = 0; a < 3; a++)
             for (int b = 0; b < 3; b++)
@@ -371,7 +342,7 @@ static void lj_cluster_energy(void)
                     double x[3] = {1.12 * a + urand(-0.03, 0.03), 1.12 * b + urand(-0.03, 0.03),
                                    1.12 * c + urand(-0.03, 0.03)};
                     double v[3] = {urand(-0.2, 0.2), urand(-0.2, 0.2), urand(-0.2, 0.2)};
-                    add(sys, x, v, 1.0);
+                    add_particle(sys, x, v, 1.0);
                 }
         psys_pair_def def = psys_pair_def_default();
         def.law = PSYS_PAIR_LENNARD_JONES;
@@ -420,7 +391,7 @@ static void lj_cluster_energy(void)
 static psys_system *cloud_with_pair(int dim, size_t n, double size, int law, psys_pair_method method, double skin,
                                     const double *box_len, uint64_t seed)
 {
-    rng_state = seed;
+    urand_seed(seed);
     psys_system *sys = random_cloud(dim, n, size, true, false);
     if (box_len) {
         double lo[3] = {0, 0, 0}, hi[3];
@@ -500,7 +471,7 @@ static void grid_rebuild_criterion(void)
     for (int i = 0; i < 10; i++)
         for (int j = 0; j < 10; j++) {
             double x[2] = {0.5 * i, 0.5 * j};
-            add(sys, x, NULL, 1);
+            add_particle(sys, x, NULL, 1);
         }
     psys_pair_def def = psys_pair_def_default();
     def.law = PSYS_PAIR_SOFT_REPULSION;
@@ -533,7 +504,7 @@ static void grid_rebuild_criterion(void)
     CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 2);
     psys_system *fresh = make_system(2);
     for (size_t i = 0; i < 100; i++)
-        add(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
+        add_particle(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
     add_pair(fresh, &def);
     double *f2 = forces_of(fresh);
     CHECK(memcmp(f1, f2, 100 * 2 * sizeof(double)) == 0);
@@ -553,7 +524,7 @@ static void grid_cache_matches_direct(void)
 {
     double *xs[2];
     for (int method = 0; method < 2; method++) {
-        rng_state = 99;
+        urand_seed(99);
         psys_system *sys = make_system(3);
         double lo[3] = {0, 0, 0}, hi[3] = {4, 4, 4};
         bool per[3] = {true, true, true};
@@ -561,7 +532,7 @@ static void grid_cache_matches_direct(void)
         for (int i = 0; i < 216; i++) {
             double x[3] = {(i % 6) * 0.66 + urand(0, 0.05), (i / 6 % 6) * 0.66 + urand(0, 0.05), (i / 36) * 0.66 + 0.01};
             double v[3] = {urand(-3, 3), urand(-3, 3), urand(-3, 3)};
-            add(sys, x, v, 1);
+            add_particle(sys, x, v, 1);
         }
         psys_pair_def def = psys_pair_def_default();
         def.law = PSYS_PAIR_LENNARD_JONES;
@@ -627,13 +598,13 @@ static void minimum_image_far(void)
                 psys_system *a = boxed_10(dim);
                 /* 0.6 apart through the x faces, the second particle 3 boxes off */
                 double p0[3] = {0.2, 5, 5}, p1[3] = {9.6 + 10.0 * shift, 5, 5};
-                add(a, p0, NULL, 1);
-                add(a, p1, NULL, 1);
+                add_particle(a, p0, NULL, 1);
+                add_particle(a, p1, NULL, 1);
                 add_pair(a, &def);
                 psys_system *b = make_system(dim);
                 double q0[3] = {5.2, 5, 5}, q1[3] = {4.6, 5, 5};
-                add(b, q0, NULL, 1);
-                add(b, q1, NULL, 1);
+                add_particle(b, q0, NULL, 1);
+                add_particle(b, q1, NULL, 1);
                 add_pair(b, &def);
                 double *fa = forces_of(a), *fb = forces_of(b);
                 CHECK(fa[0] < 0); /* attracted toward the image at -0.4 */
@@ -662,13 +633,13 @@ static void minimum_image_far_groups(void)
             psys_system *s[3];
             for (int c = 0; c < 3; c++) {
                 s[c] = boxed_10(dim);
-                rng_state = 17;
+                urand_seed(17);
                 for (int i = 0; i < 24; i++) {
                     double x[3] = {urand(centre - 1.0, centre + 1.0), urand(4.0, 6.0), urand(4.0, 6.0)};
                     x[0] -= x[0] >= 10 ? 10 : 0; /* wrapped into [0, 10) */
                     if (c < 2 && i == 9)
                         x[0] += 10.0 * shift; /* particle 9 one or three boxes off */
-                    add(s[c], x, NULL, 1);
+                    add_particle(s[c], x, NULL, 1);
                 }
                 psys_pair_def def = image_lj(c == 1 ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID);
                 add_pair(s[c], &def);
@@ -699,14 +670,14 @@ static void minimum_image(void)
                 /* across the x faces of a box [0, 10)^dim */
                 psys_system *a = boxed_10(dim);
                 double p0[3] = {0.2, 5, 5}, p1[3] = {10.2 - gap, 5, 5};
-                add(a, p0, NULL, 1);
-                add(a, p1, NULL, 1);
+                add_particle(a, p0, NULL, 1);
+                add_particle(a, p1, NULL, 1);
                 add_pair(a, &def);
                 /* the same pair side by side in open space */
                 psys_system *b = make_system(dim);
                 double q0[3] = {5.2, 5, 5}, q1[3] = {5.2 - gap, 5, 5};
-                add(b, q0, NULL, 1);
-                add(b, q1, NULL, 1);
+                add_particle(b, q0, NULL, 1);
+                add_particle(b, q1, NULL, 1);
                 add_pair(b, &def);
                 double *fa = forces_of(a), *fb = forces_of(b);
                 CHECK(fa[0] != 0);
@@ -717,8 +688,8 @@ static void minimum_image(void)
                 CHECK(psys_system_potential_energy(a) != 0);
                 /* without the box they are 9.4 apart: nothing */
                 psys_system *c = make_system(dim);
-                add(c, p0, NULL, 1);
-                add(c, p1, NULL, 1);
+                add_particle(c, p0, NULL, 1);
+                add_particle(c, p1, NULL, 1);
                 add_pair(c, &def);
                 double *fc = forces_of(c);
                 CHECK(fc[0] == 0);
@@ -742,9 +713,9 @@ static void wrapping(void)
     double x0[2] = {0.95, 3.95}, v0[2] = {1.0, 1.0};
     double x1[2] = {-0.95, 0.5}, v1[2] = {-1.0, 0.0};
     double x2[2] = {5.0, 2.0}; /* fixed, outside: stays */
-    add(sys, x0, v0, 1);
-    add(sys, x1, v1, 1);
-    add(sys, x2, NULL, 1);
+    add_particle(sys, x0, v0, 1);
+    add_particle(sys, x1, v1, 1);
+    add_particle(sys, x2, NULL, 1);
     psys_system_set_fixed(sys, 2, true);
     psys_ode ode = psys_system_ode(sys);
     psys_error err;
@@ -831,7 +802,7 @@ static void box_validation(void)
     CHECK(psys_system_force_count(sys) == 0);
     CHECK(psys_system_set_charge(sys, 0, 1) == PSYS_ERR_INVALID);
     double x[3] = {0, 0, 0};
-    add(sys, x, NULL, 1);
+    add_particle(sys, x, NULL, 1);
     CHECK(psys_system_set_charge(sys, 0, NAN) == PSYS_ERR_INVALID);
     CHECK(psys_system_charge(sys, 0) == 0);
     CHECK(psys_system_set_threads(sys, -1) == PSYS_ERR_INVALID);
@@ -842,7 +813,7 @@ static void box_validation(void)
 
 static psys_system *thread_case(int which)
 {
-    rng_state = 777 + (uint64_t)which;
+    urand_seed(777 + (uint64_t)which);
     if (which == 0) { /* LJ in a periodic 3-D box, grid; 4,096 particles, so list builds run in parallel */
         double len[3] = {12, 12, 12};
         psys_system *sys = make_system(3);
@@ -855,7 +826,7 @@ static psys_system *thread_case(int which)
                     double x[3] = {0.75 * a + urand(-0.05, 0.05), 0.75 * b + urand(-0.05, 0.05),
                                    0.75 * c + urand(-0.05, 0.05)};
                     double v[3] = {urand(-1, 1), urand(-1, 1), urand(-1, 1)};
-                    add(sys, x, v, 1);
+                    add_particle(sys, x, v, 1);
                 }
         psys_pair_def def = psys_pair_def_default();
         def.law = PSYS_PAIR_LENNARD_JONES;
@@ -919,7 +890,7 @@ static void thread_determinism_direct_bh(void) { thread_determinism(1, 3); }
 /* A centrally condensed cloud (radius ~ u³) for Barnes–Hut, with a pair force of the given method. */
 static psys_system *bh_cloud(int dim, size_t n, int law, psys_pair_method method, double theta)
 {
-    rng_state = 4242;
+    urand_seed(4242);
     psys_system *sys = make_system(dim);
     for (size_t i = 0; i < n; i++) {
         double x[3], r2 = 0;
@@ -932,7 +903,7 @@ static psys_system *bh_cloud(int dim, size_t n, int law, psys_pair_method method
         } while (r2 > 1);
         for (int k = 0; k < dim; k++)
             x[k] *= r2;
-        add(sys, x, NULL, urand(0.5, 1.5));
+        add_particle(sys, x, NULL, urand(0.5, 1.5));
         if (law == PSYS_PAIR_COULOMB) /* mostly positive: 20% negative charges */
             CHECK(psys_system_set_charge(sys, i, urand(0.2, 1.0) * (urand(0, 1) < 0.8 ? 1 : -1)) == PSYS_OK);
     }
@@ -1020,8 +991,8 @@ static void kepler_orbit_closes(void)
         psys_system *sys = make_system(2);
         double x1[2] = {-m2 / M * rp, 0}, v1[2] = {0, -m2 / M * vp};
         double x2[2] = {m1 / M * rp, 0}, v2[2] = {0, m1 / M * vp};
-        add(sys, x1, v1, m1);
-        add(sys, x2, v2, m2);
+        add_particle(sys, x1, v1, m1);
+        add_particle(sys, x2, v2, m2);
         psys_pair_def def = psys_pair_def_default();
         def.G = G;
         def.method = (psys_pair_method)method;
@@ -1050,7 +1021,7 @@ static void figure_eight_returns(void)
     double v[3][2] = {{-v3[0] / 2, -v3[1] / 2}, {-v3[0] / 2, -v3[1] / 2}, {v3[0], v3[1]}};
     psys_system *sys = make_system(2);
     for (int i = 0; i < 3; i++)
-        add(sys, x[i], v[i], 1.0);
+        add_particle(sys, x[i], v[i], 1.0);
     psys_pair_def def = psys_pair_def_default();
     add_pair(sys, &def);
     double e0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
@@ -1077,7 +1048,7 @@ static void jacobians_match_differences(void)
     static double kuser = 2.5;
     for (int dim = 2; dim <= 3; dim++)
         for (int law = 0; law <= PSYS_PAIR_USER; law++) {
-            rng_state = 31 + (uint64_t)law;
+            urand_seed(31 + (uint64_t)law);
             psys_system *sys = random_cloud(dim, 6, 1.0, true, law == PSYS_PAIR_COULOMB);
             psys_pair_def def = psys_pair_def_default();
             def.law = (psys_pair_law)law;
@@ -1119,11 +1090,11 @@ static void particles_added_later(void)
     def.law = PSYS_PAIR_LENNARD_JONES;
     def.sigma = 0.1;
     add_pair(a, &def);
-    rng_state = 5;
+    urand_seed(5);
     for (int i = 0; i < 400; i++) {
         double x[3] = {urand(0, 1), urand(0, 1), urand(0, 1)};
-        add(a, x, NULL, 1);
-        add(b, x, NULL, 1);
+        add_particle(a, x, NULL, 1);
+        add_particle(b, x, NULL, 1);
         if (i == 1 || i == 100)
             free(forces_of(a));
     }
@@ -1267,7 +1238,7 @@ static void checkpoint_resume_bit_exact(void)
     size_t len = (size_t)snprintf(text, sizeof text,
                                   "{\"psys\": 1, \"dim\": 3, \"integrator\": \"verlet\", \"dt\": 0.01, \"steps\": 30,"
                                   " \"box\": {\"lo\": [0, 0, 0], \"hi\": [6, 6, 6]}, \"particles\": [");
-    rng_state = 2024;
+    urand_seed(2024);
     for (int i = 0; i < 125; i++)
         len += (size_t)snprintf(text + len, sizeof text - len, "%s{\"x\": [%.17g, %.17g, %.17g], \"v\": [%.17g, %.17g, %.17g]}",
                                 i ? ", " : "", 1.2 * (i % 5) + 0.1, 1.2 * (i / 5 % 5) + 0.1, 1.2 * (i / 25) + 0.1,
@@ -1312,20 +1283,6 @@ static void checkpoint_resume_bit_exact(void)
     free(ck);
     psys_scene_destroy(full);
     psys_scene_destroy(half);
-}
-
-static void expect_error(const char *text, const char *message)
-{
-    psys_error err;
-    psys_scene *s = psys_scene_load_string(text, strlen(text), &err);
-    CHECK(s == NULL);
-    if (s) {
-        fprintf(stderr, "accepted: %s\n", text);
-        psys_scene_destroy(s);
-        return;
-    }
-    CHECK(err.code == PSYS_ERR_INVALID);
-    CHECK_STR(err.message, message);
 }
 
 static void scene_bad_input(void)

@@ -2,6 +2,7 @@
  * forms: projectiles, drag decay, damped oscillators, conservation of
  * momentum and energy, fixed particles, per-particle masses (ERRATA §3). */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -12,44 +13,13 @@
 static const char *const all_solvers[] = {"euler", "midpoint", "rk4", "symplectic-euler", "verlet", "rk45"};
 #define NSOLVERS (sizeof all_solvers / sizeof all_solvers[0])
 
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    CHECK(sys != NULL);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
-static size_t add_particle(psys_system *sys, const double *x, const double *v, double m)
-{
-    size_t i = (size_t)-1;
-    psys_status st = psys_system_add_particle(sys, x, v, m, NULL, &i);
-    CHECK(st == PSYS_OK);
-    return i;
-}
-
-static psys_solver *make_solver(const char *name, const psys_ode *ode)
-{
-    psys_error err;
-    psys_solver *s = psys_solver_create(name, ode, &err);
-    if (!s) {
-        fprintf(stderr, "psys_solver_create(%s): %s\n", name, err.message);
-        exit(1);
-    }
-    return s;
-}
-
 /* Integrate sys with solver `name` over T = n h: fixed-step solvers take n
  * steps of h; adaptive ones step with h_max = min(h, T - t) until they land
  * on T. Returns the steps taken. */
 static long run_to(psys_system *sys, const char *name, double h, long nsteps, double tol)
 {
     psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = make_solver(name, &ode);
+    psys_solver *s = make_ode_solver(name, &ode);
     long taken = 0;
     if (psys_solver_is_adaptive(s)) {
         CHECK(psys_solver_set_tolerance(s, tol) == PSYS_OK);
@@ -420,7 +390,7 @@ static void own_mass_acceleration(void)
             CHECK_NEAR(yd[9 + p * 3 + k], F[k] / masses[p], 1e-15);
         }
     /* One step of Euler: v = h F/m_i for each particle. */
-    psys_solver *s = make_solver("euler", &ode);
+    psys_solver *s = make_ode_solver("euler", &ode);
     CHECK(psys_solver_step(s, 0.125, NULL) == PSYS_OK);
     const double *v = psys_system_velocities(sys);
     for (int p = 0; p < 3; p++)
@@ -534,7 +504,7 @@ static double rk4_energy_drift(double h, long n)
     double E0 = psys_system_kinetic_energy(sys) + psys_system_potential_energy(sys);
     double ke0 = psys_system_kinetic_energy(sys);
     psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = make_solver("rk4", &ode);
+    psys_solver *s = make_ode_solver("rk4", &ode);
     double worst = 0, ke_change = 0;
     for (long k = 0; k < n; k++) {
         CHECK(psys_solver_step(s, h, NULL) == PSYS_OK);

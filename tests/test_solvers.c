@@ -2,6 +2,7 @@
  * measured convergence orders, rk45 error control and landing, symplectic
  * energy behaviour, and non-finite states. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -11,17 +12,6 @@
 
 static const char *const all_solvers[] = {"euler", "midpoint", "rk4", "symplectic-euler", "verlet", "rk45"};
 #define NSOLVERS (sizeof all_solvers / sizeof all_solvers[0])
-
-static psys_solver *make_solver(const char *name, const psys_ode *ode)
-{
-    psys_error err;
-    psys_solver *s = psys_solver_create(name, ode, &err);
-    if (!s) {
-        fprintf(stderr, "psys_solver_create(%s): %s\n", name, err.message);
-        exit(1);
-    }
-    return s;
-}
 
 /* ------------------------------------------------------------------ */
 /* A custom ODE that knows nothing of particles.                        */
@@ -103,7 +93,7 @@ static void registry(void)
     custom c = {.n = 2, .y = {1, 0}, .kind = ODE_HARMONIC};
     psys_ode ode = custom_ode(&c, 1);
     for (size_t i = 0; i < NSOLVERS; i++) {
-        psys_solver *s = make_solver(all_solvers[i], &ode);
+        psys_solver *s = make_ode_solver(all_solvers[i], &ode);
         CHECK_STR(psys_solver_name(s), all_solvers[i]);
         CHECK(psys_solver_order(s) == orders[i]);
         CHECK(psys_solver_is_adaptive(s) == (strcmp(all_solvers[i], "rk45") == 0));
@@ -169,7 +159,7 @@ static void custom_ode_decay(void)
     for (int i = 0; i < 3; i++) {
         custom c = {.n = 3, .y = {1.0, -2.0, 0.5}, .t = 1.0, .kind = ODE_DECAY};
         psys_ode ode = custom_ode(&c, 0);
-        psys_solver *s = make_solver(names[i], &ode);
+        psys_solver *s = make_ode_solver(names[i], &ode);
         for (long k = 0; k < n; k++) {
             double ht = -1;
             CHECK(psys_solver_step(s, h, &ht) == PSYS_OK);
@@ -186,7 +176,7 @@ static void custom_ode_decay(void)
     /* rk45 lands on T and meets its tolerance against e^{-T}. */
     custom c = {.n = 3, .y = {1.0, -2.0, 0.5}, .kind = ODE_DECAY};
     psys_ode ode = custom_ode(&c, 0);
-    psys_solver *s = make_solver("rk45", &ode);
+    psys_solver *s = make_ode_solver("rk45", &ode);
     CHECK(psys_solver_set_tolerance(s, 1e-9) == PSYS_OK);
     const double T = 5.0;
     while (c.t < T)
@@ -208,7 +198,7 @@ static void custom_ode_symplectic(void)
     for (int which = 0; which < 2; which++) {
         custom c = {.n = 2, .y = {q0, p0}, .kind = ODE_HARMONIC};
         psys_ode ode = custom_ode(&c, 1);
-        psys_solver *s = make_solver(which ? "verlet" : "symplectic-euler", &ode);
+        psys_solver *s = make_ode_solver(which ? "verlet" : "symplectic-euler", &ode);
         CHECK(psys_solver_step(s, h, NULL) == PSYS_OK);
         double q1, p1;
         if (which == 0) {
@@ -292,7 +282,7 @@ static double osc_fixed_error_of(const osc *o, const char *name, double T, long 
 {
     psys_system *sys = osc_system(o);
     psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = make_solver(name, &ode);
+    psys_solver *s = make_ode_solver(name, &ode);
     double h = T / (double)n;
     for (long k = 0; k < n; k++)
         CHECK(psys_solver_step(s, h, NULL) == PSYS_OK);
@@ -324,7 +314,7 @@ static void measure_orders(const osc *o, const char *label)
         const char *name = order_cases[i].name;
         custom dummy = {.n = 2, .kind = ODE_HARMONIC};
         psys_ode dode = custom_ode(&dummy, 1);
-        psys_solver *s = make_solver(name, &dode);
+        psys_solver *s = make_ode_solver(name, &dode);
         int order = psys_solver_order(s);
         psys_solver_destroy(s);
         double e[4], sx = 0, sy = 0, sxx = 0, sxy = 0;
@@ -356,7 +346,7 @@ static void convergence_orders(void)
     custom dummy = {.n = 2, .kind = ODE_HARMONIC};
     psys_ode dode = custom_ode(&dummy, 1);
     for (size_t i = 0; i < sizeof order_cases / sizeof order_cases[0]; i++) {
-        psys_solver *s = make_solver(order_cases[i].name, &dode);
+        psys_solver *s = make_ode_solver(order_cases[i].name, &dode);
         CHECK(psys_solver_order(s) == expected[i]);
         psys_solver_destroy(s);
     }
@@ -421,7 +411,7 @@ static rk45_result rk45_run(double tol, double T)
     psys_system *sys = osc_system(&OSC);
     counted cnt;
     psys_ode ode = counted_ode(&cnt, sys);
-    psys_solver *s = make_solver("rk45", &ode);
+    psys_solver *s = make_ode_solver("rk45", &ode);
     CHECK(psys_solver_set_tolerance(s, tol) == PSYS_OK);
     rk45_result r = {0, 0, 0, 0};
     while (psys_system_time(sys) < T && r.steps < 100000) {
@@ -495,7 +485,7 @@ static void rk45_landing(void)
 {
     psys_system *sys = osc_system(&OSC);
     psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = make_solver("rk45", &ode);
+    psys_solver *s = make_ode_solver("rk45", &ode);
     CHECK(psys_solver_set_tolerance(s, 1e-6) == PSYS_OK);
     CHECK(psys_solver_set_next_step(s, 1.0) == PSYS_OK);
     CHECK(psys_solver_next_step(s) == 1.0);
@@ -520,7 +510,7 @@ static void rk45_landing(void)
     psys_system_destroy(sys);
     sys = osc_system(&OSC);
     ode = psys_system_ode(sys);
-    s = make_solver("rk45", &ode);
+    s = make_ode_solver("rk45", &ode);
     CHECK(psys_solver_set_tolerance(s, 1e-8) == PSYS_OK);
     CHECK(psys_solver_step(s, 50.0, &ht) == PSYS_OK);
     CHECK(psys_solver_rejected_steps(s) > 0);
@@ -534,7 +524,7 @@ static void rk45_bad_arguments(void)
 {
     custom c = {.n = 1, .y = {1}, .kind = ODE_DECAY};
     psys_ode ode = custom_ode(&c, 0);
-    psys_solver *s = make_solver("rk45", &ode);
+    psys_solver *s = make_ode_solver("rk45", &ode);
     CHECK(psys_solver_set_tolerance(s, 0.0) == PSYS_ERR_INVALID);
     CHECK(psys_solver_set_tolerance(s, -1e-6) == PSYS_ERR_INVALID);
     CHECK(psys_solver_set_tolerance(s, NAN) == PSYS_ERR_INVALID);
@@ -548,7 +538,7 @@ static void rk45_bad_arguments(void)
     for (size_t i = 0; i < NSOLVERS; i++) {
         custom h = {.n = 2, .y = {0.25, 0.5}, .t = 3.0, .kind = ODE_HARMONIC};
         psys_ode o2 = custom_ode(&h, 1);
-        s = make_solver(all_solvers[i], &o2);
+        s = make_ode_solver(all_solvers[i], &o2);
         for (int k = 0; k < 4; k++) {
             CHECK(psys_solver_step(s, bad[k], NULL) == PSYS_ERR_INVALID);
             CHECK(psys_solver_last_error(s)[0] != '\0');
@@ -567,7 +557,7 @@ static void failed_step_zeroes_h_taken(void)
     for (size_t i = 0; i < NSOLVERS; i++) {
         custom h = {.n = 2, .y = {0.25, 0.5}, .t = 3.0, .kind = ODE_HARMONIC};
         psys_ode ode = custom_ode(&h, 1);
-        psys_solver *s = make_solver(all_solvers[i], &ode);
+        psys_solver *s = make_ode_solver(all_solvers[i], &ode);
         for (int k = 0; k < 4; k++) {
             double ht = 7;
             CHECK(psys_solver_step(s, bad[k], &ht) == PSYS_ERR_INVALID);
@@ -597,7 +587,7 @@ static void symplectic_energy_bounded(void)
     for (int which = 0; which < 2; which++) {
         psys_system *sys = osc_system(&OSC);
         psys_ode ode = psys_system_ode(sys);
-        psys_solver *s = make_solver(which ? "verlet" : "symplectic-euler", &ode);
+        psys_solver *s = make_ode_solver(which ? "verlet" : "symplectic-euler", &ode);
         const double *x = psys_system_positions(sys), *v = psys_system_velocities(sys);
         double E0 = osc_energy(sys);
         CHECK_NEAR(E0, 0.5 * OSC.m * OSC.w0 * OSC.w0 + 0.5 * OSC.ks * OSC.u0 * OSC.u0, 1e-14);
@@ -645,7 +635,7 @@ static void euler_energy_grows(void)
     const double w2 = OSC.ks / OSC.m, growth = 1 + h * h * w2;
     psys_system *sys = osc_system(&OSC);
     psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = make_solver("euler", &ode);
+    psys_solver *s = make_ode_solver("euler", &ode);
     double E0 = osc_energy(sys), prev = E0;
     for (long k = 1; k <= n; k++) {
         CHECK(psys_solver_step(s, h, NULL) == PSYS_OK);
@@ -676,7 +666,7 @@ static void nonfinite_custom_ode(void)
          * the RK family, component 1's own derivative is NaN. */
         custom c = {.n = 4, .y = {0.5, -0.25, 1.0, 2.0}, .t = 2.0, .kind = ODE_NAN, .nan_at = symp ? 3 : 1};
         psys_ode ode = custom_ode(&c, symp ? 2 : 0);
-        psys_solver *s = make_solver(name, &ode);
+        psys_solver *s = make_ode_solver(name, &ode);
         double ht = 9;
         psys_status st = psys_solver_step(s, 0.1, &ht);
         if (st != PSYS_ERR_NONFINITE)
@@ -728,7 +718,7 @@ static void nonfinite_particle_force(void)
         memcpy(x0, psys_system_positions(sys), sizeof x0);
         memcpy(v0, psys_system_velocities(sys), sizeof v0);
         psys_ode ode = psys_system_ode(sys);
-        psys_solver *s = make_solver(name, &ode);
+        psys_solver *s = make_ode_solver(name, &ode);
         psys_status st = psys_solver_step(s, 0.01, NULL);
         CHECK(st == PSYS_ERR_NONFINITE);
         /* Euler: x1 = x0 + h v0 stays finite, v1 is the first bad one
@@ -784,7 +774,7 @@ static void solver_threads_same_bits(void)
                 o.y[i] = sin(0.001 * (double)i);
             psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
                             .set_time = lo_set_time, .derivative = lo_deriv};
-            psys_solver *s = make_solver(names[k], &ode);
+            psys_solver *s = make_ode_solver(names[k], &ode);
             CHECK(psys_solver_set_threads(s, -1) == PSYS_ERR_INVALID);
             CHECK(psys_solver_set_threads(s, r == 0 ? 1 : 3) == PSYS_OK);
             for (int step = 0; step < 5; step++)
@@ -822,7 +812,7 @@ static void nonfinite_index_threads(void)
             return;
         psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
                         .set_time = lo_set_time, .derivative = lo_deriv_nan};
-        psys_solver *s = make_solver("euler", &ode);
+        psys_solver *s = make_ode_solver("euler", &ode);
         CHECK(psys_solver_set_threads(s, threads) == PSYS_OK);
         CHECK(psys_solver_step(s, 0.05, NULL) == PSYS_ERR_NONFINITE);
         CHECK(psys_solver_bad_component(s) == 70000);
@@ -863,7 +853,7 @@ static void nonfinite_kinds(void)
                     o.y[at[p]] = bad[b];
                 psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
                                 .set_time = lo_set_time, .derivative = zero_deriv};
-                psys_solver *s = make_solver("euler", &ode);
+                psys_solver *s = make_ode_solver("euler", &ode);
                 CHECK(psys_solver_set_threads(s, threads) == PSYS_OK);
                 psys_status st = psys_solver_step(s, 0.05, NULL);
                 if (expect_bad) {

@@ -5,6 +5,7 @@
  * rest lengths and forces against eq. 1 with r(t), scene round trips, and
  * every bad-input class with its exact message. */
 #include "check.h"
+#include "helpers.h"
 
 #include <psys/psys.h>
 
@@ -14,17 +15,6 @@
 
 #define TWO_PI 6.28318530717958647692
 
-static psys_system *make_system(int dim)
-{
-    psys_error err;
-    psys_system *sys = psys_system_create(dim, &err);
-    if (!sys) {
-        fprintf(stderr, "psys_system_create: %s\n", err.message);
-        exit(1);
-    }
-    return sys;
-}
-
 static psys_scene *load(const char *text)
 {
     psys_error err;
@@ -33,21 +23,6 @@ static psys_scene *load(const char *text)
         fprintf(stderr, "load failed: %s\n", err.message);
     CHECK(sc != NULL);
     return sc;
-}
-
-/* Load must fail with exactly `want`. */
-static void expect_error(const char *text, const char *want)
-{
-    psys_error err;
-    psys_scene *sc = psys_scene_load_string(text, strlen(text), &err);
-    CHECK(sc == NULL);
-    if (sc) {
-        fprintf(stderr, "  scene loaded but should fail with: %s\n", want);
-        psys_scene_destroy(sc);
-        return;
-    }
-    CHECK(err.code == PSYS_ERR_INVALID);
-    CHECK_STR(err.message, want);
 }
 
 static size_t find(const psys_system *sys, const char *id)
@@ -106,18 +81,6 @@ static bool no_duplicate_springs(const psys_system *sys)
         }
     }
     return true;
-}
-
-static psys_solver *make_solver(const char *name, psys_system *sys)
-{
-    psys_error err;
-    psys_ode ode = psys_system_ode(sys);
-    psys_solver *s = psys_solver_create(name, &ode, &err);
-    if (!s) {
-        fprintf(stderr, "psys_solver_create(%s): %s\n", name, err.message);
-        exit(1);
-    }
-    return s;
 }
 
 /* ------------------------------------------------------------------ */
