@@ -188,8 +188,10 @@ PAIR_INLINE size_t scan_plain(const pair_grid *g, const double *xs, size_t i, ui
 #include <immintrin.h>
 #define PSYS_SCAN_AVX512 1
 /* scan_plain eight candidates at a time: the distances as 8-wide vectors,
- * the accepted indices packed with a compress (AVX-512F). While eight more
- * fit in room; the rest (and the tail) through scan_plain. */
+ * the accepted indices packed with a compress (AVX-512F); the last vector
+ * masked (a cell run holds a dozen candidates or so, and a scalar tail cost
+ * as much as the vectors). While eight more fit in room; the rest through
+ * scan_plain. */
 __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g, const double *xs, size_t i,
                                                              uint32_t t0, uint32_t t1, uint32_t *out, size_t cnt,
                                                              size_t room, double rl2, bool half, int d)
@@ -199,17 +201,19 @@ __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g,
     const __m512d lim = _mm512_set1_pd(rl2), zero = _mm512_setzero_pd();
     const __m512i vi = _mm512_set1_epi64((long long)i);
     uint32_t t = t0;
-    for (; t + 8 <= t1 && cnt + 8 <= room; t += 8) {
-        __m512d dx = _mm512_sub_pd(x0, _mm512_loadu_pd(c0 + t));
+    for (; t < t1 && cnt + 8 <= room; t += 8) {
+        const __mmask8 live = t1 - t >= 8 ? (__mmask8)0xff : (__mmask8)((1u << (t1 - t)) - 1);
+        __m512d dx = _mm512_sub_pd(x0, _mm512_maskz_loadu_pd(live, c0 + t));
         __m512d r2 = _mm512_add_pd(zero, _mm512_mul_pd(dx, dx));
-        dx = _mm512_sub_pd(x1, _mm512_loadu_pd(c1 + t));
+        dx = _mm512_sub_pd(x1, _mm512_maskz_loadu_pd(live, c1 + t));
         r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
         if (d == 3) {
-            dx = _mm512_sub_pd(x2, _mm512_loadu_pd(c2 + t));
+            dx = _mm512_sub_pd(x2, _mm512_maskz_loadu_pd(live, c2 + t));
             r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
         }
-        __m512i j = _mm512_cvtepu32_epi64(_mm256_loadu_si256((const __m256i *)(g->cell_list + t)));
-        __mmask8 ok = _mm512_cmp_pd_mask(r2, lim, _CMP_LT_OQ)
+        __m512i j = _mm512_cvtepu32_epi64(
+            _mm512_castsi512_si256(_mm512_maskz_loadu_epi32((__mmask16)live, g->cell_list + t)));
+        __mmask8 ok = live & _mm512_cmp_pd_mask(r2, lim, _CMP_LT_OQ)
                       & (half ? _mm512_cmpgt_epu64_mask(j, vi) : _mm512_cmpneq_epu64_mask(j, vi));
         _mm256_storeu_si256((__m256i *)(out + cnt), _mm512_cvtepi64_epi32(_mm512_maskz_compress_epi64(ok, j)));
         cnt += (size_t)__builtin_popcount((unsigned)ok);
