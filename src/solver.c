@@ -183,7 +183,7 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
         s->ode.project(s->ode.ctx, t1, y1);
     /* Whether any component is not finite: its exponent bits are all set,
      * and only then does adding one to the exponent carry into the sign
-     * bit. AND, ADD and OR vectorize; isfinite's early-out loop does not. */
+     * bit. AND, ADD and OR vectorize; a branch per component does not. */
     const int nt = psys__solver_threads(s);
     const uint64_t expo = 0x7ff0000000000000u, one = 0x0010000000000000u;
     uint64_t any = 0;
@@ -195,11 +195,12 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
     }
     /* The first non-finite component, whatever the thread count. */
     size_t bad = SIZE_MAX;
-    for (size_t i = 0; (any >> 63) && i < s->n; i++)
-        if (!isfinite(y1[i])) {
-            bad = i;
-            break;
-        }
+    if (any >> 63)
+        for (size_t i = 0; i < s->n; i++)
+            if (!isfinite(y1[i])) {
+                bad = i;
+                break;
+            }
     if (bad != SIZE_MAX) {
         s->bad = bad;
         return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);

@@ -1,6 +1,6 @@
 /* Helpers shared by the C test files: building systems and solvers, loading
- * and saving scenes, and a reproducible random sequence. Include after
- * check.h. Everything is static (inline) rather than in a linked helpers.c
+ * and saving scenes, and a reproducible random sequence. Everything is
+ * static (inline) rather than in a linked helpers.c
  * because CHECK counts into check.h's per-file check_failures; inline keeps
  * the helpers a file does not use from warning. */
 #ifndef PSYS_TESTS_HELPERS_H

@@ -8,6 +8,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 static const char *const all_solvers[] = {"euler", "midpoint", "rk4", "symplectic-euler", "verlet", "rk45"};
@@ -823,8 +824,10 @@ static void nonfinite_index_threads(void)
 }
 
 /* The finite check at the end of a step (a bit test on the exponent) takes
- * the extremes of the finite range and refuses both infinities and a NaN
- * of either sign, wherever they stand. A zero derivative keeps y0. */
+ * the extremes of the finite range and refuses both infinities and NaNs of
+ * either sign and any payload, wherever they stand; on 3 threads each
+ * thread checks its own part (the state is long enough to be split), and
+ * the first bad index is still reported. A zero derivative keeps y0. */
 static psys_status zero_deriv(void *ctx, double t, const double *y, double *yd)
 {
     (void)t;
@@ -833,24 +836,36 @@ static psys_status zero_deriv(void *ctx, double t, const double *y, double *yd)
     return PSYS_OK;
 }
 
+static double bits_to_double(uint64_t u)
+{
+    double v;
+    memcpy(&v, &u, sizeof v);
+    return v;
+}
+
 static void nonfinite_kinds(void)
 {
-    const size_t n = 37;
+    const size_t n = 100000;
     const double finite[] = {DBL_MAX, -DBL_MAX, DBL_MIN, -DBL_MIN, DBL_TRUE_MIN, -0.0, 1e300};
-    const double bad[] = {INFINITY, -INFINITY, NAN, -NAN};
-    const size_t at[] = {0, 17, 36};
+    const double bad[] = {INFINITY, -INFINITY, NAN, -NAN, bits_to_double(0x7ff0000000000001u),
+                          bits_to_double(0xfff0000000000001u), bits_to_double(0x7ff8000000000123u)};
+    const size_t nbad = sizeof bad / sizeof bad[0];
+    const size_t at[] = {0, 50001, 99999}; /* first, in the second or third thread's part, last */
     for (int threads = 1; threads <= 3; threads += 2)
-        for (size_t b = 0; b <= sizeof bad / sizeof bad[0]; b++)
-            for (size_t p = 0; p < (b < sizeof bad / sizeof bad[0] ? sizeof at / sizeof at[0] : 1); p++) {
+        for (size_t b = 0; b <= nbad; b++)
+            for (size_t p = 0; p < (b < nbad ? sizeof at / sizeof at[0] : 1); p++) {
                 longode o = {n, 0, calloc(n, sizeof(double))};
                 CHECK(o.y != NULL);
                 if (!o.y)
                     return;
                 for (size_t i = 0; i < n; i++)
                     o.y[i] = finite[i % (sizeof finite / sizeof finite[0])];
-                const bool expect_bad = b < sizeof bad / sizeof bad[0];
-                if (expect_bad)
+                const bool expect_bad = b < nbad;
+                if (expect_bad) {
                     o.y[at[p]] = bad[b];
+                    if (p == 0)
+                        o.y[at[2]] = bad[b]; /* a later one too: the first is named */
+                }
                 psys_ode ode = {.size = n, .ctx = &o, .get_state = lo_get, .set_state = lo_set, .get_time = lo_time,
                                 .set_time = lo_set_time, .derivative = zero_deriv};
                 psys_solver *s = make_ode_solver("euler", &ode);

@@ -361,8 +361,9 @@ static void key_down(app *a, const SDL_KeyboardEvent *e)
     SDL_Keycode k = e->keysym.sym;
     bool ctrl = (e->keysym.mod & KMOD_CTRL) != 0;
     vw_model *m = &a->m;
-    /* A held key repeats; only stepping and the time step may act again:
-     * a repeated toggle, delete or undo would undo what the press did. */
+    /* A held key repeats; only stepping and the time step act again: a
+     * repeated toggle would reverse the press, a repeated delete or undo
+     * would remove or undo more than asked (there is no redo). */
     if (e->repeat && (ctrl || (k != SDLK_n && k != SDLK_LEFTBRACKET && k != SDLK_RIGHTBRACKET)))
         return;
     if (ctrl && k == SDLK_s) {

@@ -129,8 +129,8 @@ if [ -s saved.json ]; then
     WID=
     if wait_for 60 find_window && [ -n "$WID" ] && wait_for 60 viewable; then
         # G held for 0.6 s: the X server (view_x.sh: first repeat after
-        # 100 ms, then one a second) repeats it once, and a held toggle key
-        # must act once (docs/cli.md), so gravity ends up on, not off.
+        # 100 ms, the next after 30 s) repeats it exactly once, and a held
+        # toggle key must act once (docs/cli.md): gravity ends up on, not off.
         x mousemove --sync --window "$WID" 20 700 keydown g
         sleep 0.6
         x keyup g
