@@ -21,6 +21,7 @@
  * whose list has ended takes its own particle as the partner (then masked). */
 #include "pair.h"
 
+#include <stddef.h>
 #include <stdlib.h>
 
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__)
@@ -59,11 +60,21 @@ static void group_row_alone(const pair_force *p, const pair_image *m, const doub
 
 #define AVX2 __attribute__((target("avx2")))
 
+/* The loops' constants, one vector of equal lanes each (V: __m256d or
+ * __m512d); the eight-lane set is the four-lane one widened (group8_consts_of). */
+#define GROUP_CONST_FIELDS(V) V hl[3], ln[3], fr[3], sign, rc2, zero, one, two, sig2, lj24, kc, radius
+#define GROUP_NCONST 18
+
 typedef struct group_consts {
-    __m256d hl[3], ln[3], fr[3], sign;
-    __m256d rc2, zero, one, two, sig2, lj24, kc, radius;
+    union {
+        struct {
+            GROUP_CONST_FIELDS(__m256d);
+        };
+        __m256d v[GROUP_NCONST];
+    };
     double inlo[3], inhi[3]; /* group_interior's bounds (±inf on free axes) */
 } group_consts;
+_Static_assert(offsetof(group_consts, radius) == (GROUP_NCONST - 1) * sizeof(__m256d), "GROUP_NCONST");
 
 /* One axis: e = x_i - x_j, then the one-box minimum image of
  * pair_delta_folded (exact false); *far flags |e| >= 1.5 boxes. */
@@ -257,8 +268,12 @@ static bool group8_wanted(void)
 }
 
 typedef struct group8_consts {
-    __m512d hl[3], ln[3], fr[3], sign;
-    __m512d rc2, one, two, sig2, lj24, kc, radius;
+    union {
+        struct {
+            GROUP_CONST_FIELDS(__m512d);
+        };
+        __m512d v[GROUP_NCONST];
+    };
 } group8_consts;
 
 AVX512 static inline __m512d group8_delta(const group8_consts *c, int k, __m512d e, __mmask8 *far)
@@ -370,23 +385,11 @@ AVX512 static bool group8_rows_as(const pair_grid *g, const group8_consts *c, in
     GROUP_DISPATCH(group8_rows)
 }
 
-AVX512 static void group8_consts_of(const pair_force *p, const pair_image *m, group8_consts *c)
+/* The four-lane constants c4 (group_consts_of), each widened to eight lanes. */
+AVX512 static void group8_consts_of(const group_consts *c4, group8_consts *c)
 {
-    double hl[3], ln[3], il[3], fr[3];
-    pair_image_fold(m, hl, ln, il, fr);
-    for (int k = 0; k < 3; k++) {
-        c->hl[k] = _mm512_set1_pd(hl[k]);
-        c->ln[k] = _mm512_set1_pd(ln[k]);
-        c->fr[k] = _mm512_set1_pd(fr[k]);
-    }
-    c->sign = _mm512_set1_pd(-0.0);
-    c->one = _mm512_set1_pd(1.0);
-    c->two = _mm512_set1_pd(2.0);
-    c->rc2 = _mm512_set1_pd(p->rc2);
-    c->sig2 = _mm512_set1_pd(p->sig2);
-    c->lj24 = _mm512_set1_pd(p->lj24);
-    c->kc = _mm512_set1_pd(p->kc);
-    c->radius = _mm512_set1_pd(p->def.radius);
+    for (int k = 0; k < GROUP_NCONST; k++)
+        c->v[k] = _mm512_broadcast_f64x4(c4->v[k]);
 }
 
 /* The constants of both loops. */
@@ -453,7 +456,7 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     /* eight rows at a time where the CPU can, else four */
     const int width = group8_wanted() ? GROUP8 : GROUP;
     if (width == GROUP8)
-        group8_consts_of(p, m, &x.c8);
+        group8_consts_of(&x.c4, &x.c8);
     const size_t ng = n / (size_t)width, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
     const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
     const bool three = p->dim == 3;
