@@ -301,11 +301,13 @@ static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 
 /* Grid forces over full lists: four rows at a time where that runs
  * (pair_group.c), else through rows_fns, in parallel by chunks of rows. */
-static void grid_rows(const pair_force *p, const pair_image *m, const double *w, size_t n,
+static void grid_rows(pair_force *p, const pair_image *m, const double *w, size_t n,
                       const unsigned char *mark, double *out, int nt)
 {
-    if (psys__pair_group_forces(p, m, w, n, mark, out, nt))
+    if (psys__pair_group_forces(p, m, w, n, mark, out, nt)) {
+        p->stats.grouped++;
         return;
+    }
     const rows_fn fn = rows_fns[p->law][p->dim == 3];
     const size_t nchunks = (n + ROWS_CHUNK - 1) / ROWS_CHUNK;
     (void)nt;

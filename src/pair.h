@@ -87,6 +87,16 @@ typedef struct pair_grid {
     size_t cache_n, cache_rebuilds;
     double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair_group.c,
                               xq 32-byte aligned in xq_mem */
+    /* pair_group.c's copy of the full lists, interleaved by groups of
+     * gl_width consecutive rows (one load stream instead of one per row):
+     * entry k of row b·gl_width + l at gl[gl_start[b] + k·gl_width + l], each
+     * row padded with its own index to its group's longest list */
+    uint32_t *gl;
+    size_t gl_cap;
+    size_t *gl_start;      /* gl_start_cap: groups + 1 */
+    size_t gl_start_cap;
+    int gl_width;
+    bool gl_ok;            /* gl matches the lists (a build clears it) */
 } pair_grid;
 
 typedef struct pair_bh {
@@ -463,11 +473,15 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 
 /* ---- pair_group.c ---- */
 /** Grid forces over the full lists of every row (or the marked ones) stored
- *  into out, four rows at a time, from the positions in p->xsoa: the same
- *  bits as pair_row_forces. False if that path does not run here (a law it
- *  does not support, no AVX2, PSYS_GROUP_OFF set); nothing was written. */
+ *  into out, four or eight rows at a time, from the positions in p->xsoa:
+ *  the same bits as pair_row_forces. False if that path does not run here (a
+ *  law it does not support, no AVX2, PSYS_GROUP_OFF set, no interleaved
+ *  lists for its width); nothing was written. */
 bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *w, size_t n,
                              const unsigned char *rows, double *out, int nt);
+/** After a build of full lists: the interleaved copy psys__pair_group_forces
+ *  reads (pair_grid.gl), where that path runs. False if storage could not grow. */
+bool psys__pair_group_lists(pair_force *p, size_t n, int nt);
 
 /* ---- pair_bh.c ---- */
 /** Build the tree for positions x and weights w (n particles). False if storage could not grow. */

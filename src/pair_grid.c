@@ -48,6 +48,8 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->nb_start2);
     free(g->tcnt);
     free(g->xq_mem);
+    free(g->gl);
+    free(g->gl_start);
     memset(g, 0, sizeof *g);
 }
 
@@ -56,6 +58,7 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     void *q;
     g->built_n = 0; /* storage changes: rebuild at the next evaluation */
     g->cache_ok = false;
+    g->gl_ok = false;
 #define GROW(field, count, type)                            \
     if (!(q = psys__realloc(g->field, (count), sizeof(type)))) \
         return false;                                       \
@@ -538,6 +541,7 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     const double *x = e->x;
     g->built_n = 0;
     g->cache_ok = false;
+    g->gl_ok = false;
 
     /* geometry: cells at least half the list radius wide (times 1 + 1e-9), at most cells_cap of them */
     const double rl = sqrt(p->rlist2), hcell = 0.5 * rl * (1.0 + 1e-9);
@@ -678,6 +682,8 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
             return false; /* cannot happen: the counts do not change */
     }
     if (transpose && !transpose_lists(g, n, ntf))
+        return false;
+    if (!half && !psys__pair_group_lists(p, n, ntf))
         return false;
     size_t total = 0, listed = 0;
     const unsigned char *own = p->sys->own_mark;
