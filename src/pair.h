@@ -89,8 +89,9 @@ typedef struct pair_grid {
                               xq 32-byte aligned in xq_mem */
     /* pair_group.c's copy of the full lists, interleaved by groups of
      * gl_width consecutive rows (one load stream instead of one per row):
-     * entry k of row b·gl_width + l at gl[gl_start[b] + k·gl_width + l], each
-     * row padded with its own index to its group's longest list */
+     * entry k of row b·gl_width + l at gl[gl_start[b] + k·gl_width + l], as
+     * 4·j (the offset of j's record in xq), each row padded with its own
+     * index to its group's longest list */
     uint32_t *gl;
     size_t gl_cap;
     size_t *gl_start;      /* gl_start_cap: groups + 1 */

@@ -35,6 +35,7 @@
 #define GROUP 4
 #define GROUP_MAX 8 /* lanes of the widest loop (AVX-512) */
 #define GROUP_CHUNK 16 /* groups per parallel task */
+#define GROUP_N_MAX ((size_t)1 << 30) /* the lists hold 4·j, the offset of j's record in Q */
 
 #if defined(PSYS_GROUP_AVX2)
 #include <immintrin.h>
@@ -118,7 +119,7 @@ enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE };
  * records (Q), its interleaved lists and its rows' list lengths. */
 typedef struct group_in {
     const double *X0, *X1, *X2, *Q;
-    const uint32_t *il;  /* entry k of row i0 + l at il[k·width + l] */
+    const uint32_t *il;  /* entry k of row i0 + l at il[k·width + l], as 4·j (Q + il[.] is j's record) */
     const uint32_t *num; /* the rows' list lengths */
     uint32_t len;        /* the longest */
     size_t i0;           /* the first row */
@@ -144,8 +145,8 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
         const uint32_t *j = in->il + (size_t)GROUP * k;
         /* the four partners' records (x, y, z, 0), transposed: one load per
          * partner beats three gathers on the host measured (bench/README) */
-        const __m256d p0 = _mm256_load_pd(Q + 4 * (size_t)j[0]), p1 = _mm256_load_pd(Q + 4 * (size_t)j[1]);
-        const __m256d p2 = _mm256_load_pd(Q + 4 * (size_t)j[2]), p3 = _mm256_load_pd(Q + 4 * (size_t)j[3]);
+        const __m256d p0 = _mm256_load_pd(Q + j[0]), p1 = _mm256_load_pd(Q + j[1]);
+        const __m256d p2 = _mm256_load_pd(Q + j[2]), p3 = _mm256_load_pd(Q + j[3]);
         const __m256d u0 = _mm256_unpacklo_pd(p0, p1), u1 = _mm256_unpackhi_pd(p0, p1);
         const __m256d u2 = _mm256_unpacklo_pd(p2, p3), u3 = _mm256_unpackhi_pd(p2, p3);
         __m256d e0 = _mm256_sub_pd(xi0, _mm256_permute2f128_pd(u0, u2, 0x20));
@@ -303,67 +304,75 @@ AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law
     return _mm512_maskz_mov_pd(in, g);
 }
 
+/* Entry k of a group's lists (j: its eight partners' record offsets) added
+ * into a; lanes outside live (lists that have ended) add +0. */
+AVX512 __attribute__((always_inline)) static inline void group8_entry(const group8_consts *c, const int law,
+                                                                     const int d, const int mode, const double *Q,
+                                                                     const uint32_t *j, const __m512d xi[3],
+                                                                     const __mmask8 live, __m512d a[3],
+                                                                     __mmask8 *far)
+{
+    /* the eight partners' records (x, y, z, 0), transposed: q0 holds
+     * partners 0 and 2, q1 1 and 3, q2 4 and 6, q3 5 and 7, so that the
+     * 128-bit lanes picked below come out in partner order */
+    const __m512d q0 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[0])), _mm256_load_pd(Q + j[2]), 1);
+    const __m512d q1 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[1])), _mm256_load_pd(Q + j[3]), 1);
+    const __m512d q2 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[4])), _mm256_load_pd(Q + j[6]), 1);
+    const __m512d q3 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[5])), _mm256_load_pd(Q + j[7]), 1);
+    const __m512d u0 = _mm512_unpacklo_pd(q0, q1), u1 = _mm512_unpackhi_pd(q0, q1);
+    const __m512d u2 = _mm512_unpacklo_pd(q2, q3), u3 = _mm512_unpackhi_pd(q2, q3);
+    __m512d e0 = _mm512_sub_pd(xi[0], _mm512_shuffle_f64x2(u0, u2, 0x88));
+    __m512d e1 = _mm512_sub_pd(xi[1], _mm512_shuffle_f64x2(u1, u3, 0x88));
+    __m512d e2 = _mm512_setzero_pd();
+    if (d == 3)
+        e2 = _mm512_sub_pd(xi[2], _mm512_shuffle_f64x2(u0, u2, 0xdd));
+    if (mode == GROUP_IMAGE) {
+        e0 = group8_delta(c, 0, e0, far);
+        e1 = group8_delta(c, 1, e1, far);
+        if (d == 3)
+            e2 = group8_delta(c, 2, e2, far);
+    } else if (mode == GROUP_CHECK) {
+        *far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e0), c->hl[0], _CMP_GT_OQ);
+        *far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e1), c->hl[1], _CMP_GT_OQ);
+        if (d == 3)
+            *far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e2), c->hl[2], _CMP_GT_OQ);
+    }
+    __m512d r2 = _mm512_add_pd(_mm512_mul_pd(e0, e0), _mm512_mul_pd(e1, e1));
+    if (d == 3)
+        r2 = _mm512_add_pd(r2, _mm512_mul_pd(e2, e2));
+    const __m512d gg = group8_kernel(c, law, r2);
+    a[0] = _mm512_add_pd(a[0], _mm512_maskz_mul_pd(live, gg, e0));
+    a[1] = _mm512_add_pd(a[1], _mm512_maskz_mul_pd(live, gg, e1));
+    if (d == 3)
+        a[2] = _mm512_add_pd(a[2], _mm512_maskz_mul_pd(live, gg, e2));
+}
+
 /* Rows i0..i0+7 into s (s[k][l]: component k of row i0+l); true if a
- * difference was flagged (the modes of group_rows). */
+ * difference was flagged (the modes of group_rows). The entries every list
+ * has first, then the rest with a mask. */
 AVX512 __attribute__((always_inline)) static inline bool group8_rows(const group8_consts *c, const int law,
                                                                     const int d, const int mode, const group_in *in,
                                                                     double s[3][GROUP_MAX])
 {
     const size_t i0 = in->i0;
-    const double *Q = in->Q;
-    const __m512d xi0 = _mm512_loadu_pd(in->X0 + i0), xi1 = _mm512_loadu_pd(in->X1 + i0);
-    const __m512d xi2 = d == 3 ? _mm512_loadu_pd(in->X2 + i0) : _mm512_setzero_pd();
-    __m512d a0 = _mm512_setzero_pd(), a1 = a0, a2 = a0;
+    const __m512d xi[3] = {_mm512_loadu_pd(in->X0 + i0), _mm512_loadu_pd(in->X1 + i0),
+                           d == 3 ? _mm512_loadu_pd(in->X2 + i0) : _mm512_setzero_pd()};
+    __m512d a[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
     __mmask8 far = 0;
     const uint32_t *n = in->num, len = in->len;
     uint32_t full = UINT32_MAX;
     for (int l = 0; l < GROUP8; l++)
         full = n[l] < full ? n[l] : full;
     const __m256i num = _mm256_loadu_si256((const __m256i *)n);
-    for (uint32_t k = 0; k < len; k++) {
-        const uint32_t *j = in->il + (size_t)GROUP8 * k;
-        const __mmask8 live = k < full ? (__mmask8)0xff : _mm256_cmpgt_epi32_mask(num, _mm256_set1_epi32((int)k));
-        /* the eight partners' records (x, y, z, 0), transposed: q0 holds
-         * partners 0 and 2, q1 1 and 3, q2 4 and 6, q3 5 and 7, so that the
-         * 128-bit lanes picked below come out in partner order */
-        const __m512d q0 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * (size_t)j[0])),
-                                              _mm256_load_pd(Q + 4 * (size_t)j[2]), 1);
-        const __m512d q1 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * (size_t)j[1])),
-                                              _mm256_load_pd(Q + 4 * (size_t)j[3]), 1);
-        const __m512d q2 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * (size_t)j[4])),
-                                              _mm256_load_pd(Q + 4 * (size_t)j[6]), 1);
-        const __m512d q3 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + 4 * (size_t)j[5])),
-                                              _mm256_load_pd(Q + 4 * (size_t)j[7]), 1);
-        const __m512d u0 = _mm512_unpacklo_pd(q0, q1), u1 = _mm512_unpackhi_pd(q0, q1);
-        const __m512d u2 = _mm512_unpacklo_pd(q2, q3), u3 = _mm512_unpackhi_pd(q2, q3);
-        __m512d e0 = _mm512_sub_pd(xi0, _mm512_shuffle_f64x2(u0, u2, 0x88));
-        __m512d e1 = _mm512_sub_pd(xi1, _mm512_shuffle_f64x2(u1, u3, 0x88));
-        __m512d e2 = _mm512_setzero_pd();
-        if (d == 3)
-            e2 = _mm512_sub_pd(xi2, _mm512_shuffle_f64x2(u0, u2, 0xdd));
-        if (mode == GROUP_IMAGE) {
-            e0 = group8_delta(c, 0, e0, &far);
-            e1 = group8_delta(c, 1, e1, &far);
-            if (d == 3)
-                e2 = group8_delta(c, 2, e2, &far);
-        } else if (mode == GROUP_CHECK) {
-            far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e0), c->hl[0], _CMP_GT_OQ);
-            far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e1), c->hl[1], _CMP_GT_OQ);
-            if (d == 3)
-                far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e2), c->hl[2], _CMP_GT_OQ);
-        }
-        __m512d r2 = _mm512_add_pd(_mm512_mul_pd(e0, e0), _mm512_mul_pd(e1, e1));
-        if (d == 3)
-            r2 = _mm512_add_pd(r2, _mm512_mul_pd(e2, e2));
-        const __m512d gg = group8_kernel(c, law, r2);
-        a0 = _mm512_add_pd(a0, _mm512_maskz_mul_pd(live, gg, e0));
-        a1 = _mm512_add_pd(a1, _mm512_maskz_mul_pd(live, gg, e1));
-        if (d == 3)
-            a2 = _mm512_add_pd(a2, _mm512_maskz_mul_pd(live, gg, e2));
-    }
-    _mm512_storeu_pd(s[0], a0);
-    _mm512_storeu_pd(s[1], a1);
-    _mm512_storeu_pd(s[2], a2);
+    uint32_t k = 0;
+    for (; k < full; k++)
+        group8_entry(c, law, d, mode, in->Q, in->il + (size_t)GROUP8 * k, xi, (__mmask8)0xff, a, &far);
+    for (; k < len; k++)
+        group8_entry(c, law, d, mode, in->Q, in->il + (size_t)GROUP8 * k, xi,
+                     _mm256_cmpgt_epi32_mask(num, _mm256_set1_epi32((int)k)), a, &far);
+    _mm512_storeu_pd(s[0], a[0]);
+    _mm512_storeu_pd(s[1], a[1]);
+    _mm512_storeu_pd(s[2], a[2]);
     return far != 0;
 }
 
@@ -439,7 +448,7 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
     pair_grid *g = &p->grid;
     g->gl_ok = false;
 #if defined(PSYS_GROUP_AVX2)
-    if (!group_wanted(p))
+    if (!group_wanted(p) || n > GROUP_N_MAX)
         return true;
     const size_t width = group8_wanted() ? GROUP8 : GROUP, ng = n / width;
     if (ng + 1 > g->gl_start_cap) {
@@ -476,9 +485,9 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
             const uint32_t *src = g->nb + g->nb_start[i];
             size_t k = 0;
             for (; k < g->nb_num[i]; k++)
-                dst[k * width + l] = src[k];
+                dst[k * width + l] = 4 * src[k];
             for (; k < len; k++)
-                dst[k * width + l] = (uint32_t)i;
+                dst[k * width + l] = 4 * (uint32_t)i;
         }
     }
     g->gl_width = (int)width;
