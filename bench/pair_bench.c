@@ -10,6 +10,13 @@
  *       Verlet at dt = 0.005, S steps (100). Reports ns per atom-step of the
  *       stepping loop (setup excluded), neighbour-list builds and the
  *       relative energy change.
+ *   pair_bench lj-eval [--cells C] [--threads T] [--steps E] [--reps R]
+ *       The two parts of a step, apart: lj-melt's liquid after 100 steps,
+ *       then E force evaluations (200) alternating between its state and
+ *       the state with every coordinate 1e-9 larger (lists kept, every
+ *       force recomputed: "evaluation"), and E alternating with every
+ *       coordinate 0.2 larger (a list build before each: "evaluation with a
+ *       build"); ns per atom for both and their difference ("build").
  *   pair_bench grid-scaling [--threads T] [--steps S] [--max-n N]
  *       The same liquid (lj-melt's set-up) at 6, 10, 14, 20, 30, 44 and 63
  *       cells per side: 864, 4,000, 10,976, 32,000, 108,000, 340,736 and
@@ -162,6 +169,65 @@ static int run_lj(int cells, int steps, int threads, int reps, const char *label
             *ns_per_step = el * 1e9 / ((double)n * steps);
         psys_solver_destroy(sol);
         psys_system_destroy(sys);
+    }
+    return 0;
+}
+
+/* One derivative evaluation from y into ydot, failing loudly. */
+static int derive(const psys_ode *ode, const double *y, double *ydot)
+{
+    if (ode->derivative(ode->ctx, 0.0, y, ydot) != PSYS_OK) {
+        fprintf(stderr, "pair_bench: a force evaluation failed\n");
+        return 1;
+    }
+    return 0;
+}
+
+static int lj_eval(int cells, int evals, int threads, int reps)
+{
+    for (int r = 0; r < reps; r++) {
+        size_t fi = 0;
+        rng = 87287;
+        psys_system *sys = lj_melt(cells, 0.3, threads, &fi);
+        if (!sys)
+            return 1;
+        psys_ode ode = psys_system_ode(sys);
+        psys_error err;
+        psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+        double *y = malloc(3 * ode.size * sizeof(double));
+        int bad = !sol || !y;
+        for (int s = 0; s < 100 && !bad; s++)
+            bad = psys_system_advance(sys, sol, 0.005, NULL) != PSYS_OK;
+        double ns[2] = {0, 0};
+        size_t builds[2] = {0, 0}, n = psys_system_count(sys);
+        for (int kind = 0; kind < 2 && !bad; kind++) {
+            double *y2 = y + ode.size, *ydot = y2 + ode.size;
+            ode.get_state(ode.ctx, y);
+            memcpy(y2, y, ode.size * sizeof(double));
+            for (size_t i = 0; i < ode.npos; i++)
+                y2[i] = y[i] + (kind ? 0.2 : 1e-9);
+            psys_pair_stats a, b;
+            bad = derive(&ode, y2, ydot) || psys_system_pair_stats(sys, fi, &a) != PSYS_OK;
+            double t0 = now();
+            for (int e = 0; e < evals && !bad; e++)
+                bad = derive(&ode, e & 1 ? y2 : y, ydot);
+            ns[kind] = (now() - t0) * 1e9 / ((double)n * evals);
+            bad = bad || psys_system_pair_stats(sys, fi, &b) != PSYS_OK;
+            builds[kind] = b.rebuilds - a.rebuilds;
+        }
+        if (!bad)
+            printf("{\"case\":\"lj-eval\",\"atoms\":%zu,\"threads\":%d,\"evaluations\":%d,"
+                   "\"ns_per_atom_evaluation\":%.1f,\"ns_per_atom_evaluation_with_build\":%.1f,"
+                   "\"ns_per_atom_build\":%.1f,\"builds\":[%zu,%zu]}\n",
+                   n, threads, evals, ns[0], ns[1], ns[1] - ns[0], builds[0], builds[1]);
+        else
+            fprintf(stderr, "pair_bench: lj-eval: %s\n", sol ? psys_solver_last_error(sol) : "no solver or memory");
+        fflush(stdout);
+        free(y);
+        psys_solver_destroy(sol);
+        psys_system_destroy(sys);
+        if (bad)
+            return 1;
     }
     return 0;
 }
@@ -435,12 +501,14 @@ int main(int argc, char **argv)
     }
     if (strcmp(which, "lj-melt") == 0)
         return run_lj(cells, steps > 0 ? steps : 100, threads, reps, "lj-melt", NULL);
+    if (strcmp(which, "lj-eval") == 0)
+        return lj_eval(cells, steps > 0 ? steps : 200, threads, reps);
     if (strcmp(which, "grid-scaling") == 0)
         return grid_scaling(threads, steps > 0 ? steps : 50, max_n ? max_n : SIZE_MAX);
     if (strcmp(which, "barnes-hut") == 0)
         return barnes_hut(n, threads);
     if (strcmp(which, "bh-crossover") == 0)
         return bh_crossover(threads, theta, max_n ? max_n : 32768);
-    fprintf(stderr, "pair_bench: unknown case %s (lj-melt, grid-scaling, barnes-hut, bh-crossover)\n", which);
+    fprintf(stderr, "pair_bench: unknown case %s (lj-melt, lj-eval, grid-scaling, barnes-hut, bh-crossover)\n", which);
     return 2;
 }
