@@ -74,6 +74,7 @@ typedef struct pair_grid {
     size_t *chunk_off;     /* chunks_cap + 1: region of each chunk of particles in nb */
     size_t chunks_cap;
     double per_particle;   /* list entries per particle at the last build (region sizing) */
+    size_t longest;        /* the longest list of the last cell-by-cell build (its room per particle) */
     bool half;             /* lists hold only partners j > i (one thread evaluates), else all */
     bool want_full;        /* full lists from now on (a Jacobian was asked for) */
     int ncell[3];

@@ -484,6 +484,159 @@ FILL_FN(fill_3, 3, false)
 FILL_FN(fill_2h, 2, true)
 FILL_FN(fill_3h, 3, true)
 
+#ifdef PSYS_SCAN_AVX512
+/* Full lists cell by cell (AVX-512, no periodic axis of fewer than five
+ * cells): the candidates of each run of cells are loaded once for all the
+ * particles of the home cell (CELL_HOME at a time) instead of once per
+ * particle, each particle's partners collected in a scratch list, sorted and
+ * written to its slot, nb[i·room ...]. Cells are pruned by their distance
+ * to the home cell, which keeps every cell a particle's own pruning
+ * (visit_d) keeps; the test per pair is scan_avx512's on the same numbers,
+ * so the lists are the same. Returns the longest list (the caller grows
+ * room and runs it again if that is more), or SIZE_MAX if some list passed
+ * CELL_LIST (the caller uses fill_* then). */
+#define CELL_HOME 16
+#define CELL_LIST SORT_MAX
+/* fill_by_cells for home cell c: the longest of its lists, or SIZE_MAX if
+ * some list passed CELL_LIST. */
+__attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const stencil *sc, const pair_image *m,
+                                                            size_t c, size_t room, double rl2, const int d)
+{
+    const size_t stride = g->cx_stride;
+    const double lim = rl2 * (1 + 1e-6);
+    size_t longest = 0;
+    const uint32_t s0 = g->cell_start[c], s1 = g->cell_start[c + 1];
+    if (s0 == s1)
+        return 0;
+    uint32_t buf[CELL_HOME][CELL_LIST + 8], tmp[SORT_MAX];
+    int cc[3] = {(int)(c % (size_t)g->ncell[0]), (int)(c / (size_t)g->ncell[0] % (size_t)g->ncell[1]),
+                 (int)(c / ((size_t)g->ncell[0] * (size_t)g->ncell[1]))};
+    int wc[3][5];
+    double img[3][5], gap2[3][5];
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < sc->n[k]; a++) {
+            const int o = sc->off[k][a], nk = g->ncell[k];
+            int v = cc[k] + o;
+            double sh = 0;
+            if (m->per[k]) {
+                if (v < 0) {
+                    v += nk;
+                    sh = -m->len[k];
+                } else if (v >= nk) {
+                    v -= nk;
+                    sh = m->len[k];
+                }
+            } else if (v < 0 || v >= nk) {
+                v = -1;
+            }
+            const double gap = o == 0 ? 0 : (double)(abs(o) - 1) * g->cell_size[k];
+            wc[k][a] = v;
+            img[k][a] = sh;
+            gap2[k][a] = k < d ? gap * gap : 0;
+        }
+    for (uint32_t h0 = s0; h0 < s1; h0 += CELL_HOME) {
+        const int nh = s1 - h0 < CELL_HOME ? (int)(s1 - h0) : CELL_HOME;
+        size_t cnt[CELL_HOME];
+        for (int h = 0; h < nh; h++)
+            cnt[h] = 0;
+        const int nz = d == 3 ? sc->n[2] : 1;
+        for (int a2 = 0; a2 < nz; a2++) {
+            const int z = wc[2][a2];
+            if (gap2[2][a2] > lim || z < 0)
+                continue;
+            for (int a1 = 0; a1 < sc->n[1]; a1++) {
+                const double gyz = gap2[2][a2] + gap2[1][a1];
+                const int y = wc[1][a1];
+                if (gyz > lim || y < 0)
+                    continue;
+                const size_t row = (size_t)g->ncell[0] * ((size_t)y + (size_t)g->ncell[1] * (size_t)z);
+                for (int a0 = 0; a0 < sc->n[0];) {
+                    const int xx = wc[0][a0];
+                    if (gyz + gap2[0][a0] > lim || xx < 0) {
+                        a0++;
+                        continue;
+                    }
+                    int e0 = a0 + 1;
+                    while (e0 < sc->n[0] && wc[0][e0] == wc[0][e0 - 1] + 1 && img[0][e0] == img[0][a0]
+                           && !(gyz + gap2[0][e0] > lim))
+                        e0++;
+                    const uint32_t t0 = g->cell_start[row + (size_t)xx];
+                    const uint32_t t1 = g->cell_start[row + (size_t)wc[0][e0 - 1] + 1];
+                    /* the home particles' build coordinates less the run's image shift */
+                    __m512d hx[CELL_HOME][3];
+                    __m512i hi[CELL_HOME];
+                    for (int h = 0; h < nh; h++) {
+                        const size_t sl = (size_t)h0 + (size_t)h;
+                        hx[h][0] = _mm512_set1_pd(g->cell_x[sl] - img[0][a0]);
+                        hx[h][1] = _mm512_set1_pd(g->cell_x[stride + sl] - img[1][a1]);
+                        hx[h][2] = _mm512_set1_pd(d == 3 ? g->cell_x[2 * stride + sl] - img[2][a2] : 0);
+                        hi[h] = _mm512_set1_epi64((long long)g->cell_list[sl]);
+                    }
+                    const __m512d vlim = _mm512_set1_pd(rl2), zero = _mm512_setzero_pd();
+                    for (uint32_t t = t0; t < t1; t += 8) {
+                        const __mmask8 live = t1 - t >= 8 ? (__mmask8)0xff : (__mmask8)((1u << (t1 - t)) - 1);
+                        const __m512d c0 = _mm512_maskz_loadu_pd(live, g->cell_x + t);
+                        const __m512d c1 = _mm512_maskz_loadu_pd(live, g->cell_x + stride + t);
+                        const __m512d c2 = d == 3 ? _mm512_maskz_loadu_pd(live, g->cell_x + 2 * stride + t) : zero;
+                        const __m512i j = _mm512_cvtepu32_epi64(
+                            _mm512_castsi512_si256(_mm512_maskz_loadu_epi32((__mmask16)live, g->cell_list + t)));
+                        for (int h = 0; h < nh; h++) {
+                            __m512d dx = _mm512_sub_pd(hx[h][0], c0);
+                            __m512d r2 = _mm512_add_pd(zero, _mm512_mul_pd(dx, dx));
+                            dx = _mm512_sub_pd(hx[h][1], c1);
+                            r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
+                            if (d == 3) {
+                                dx = _mm512_sub_pd(hx[h][2], c2);
+                                r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
+                            }
+                            const __mmask8 ok = live & _mm512_cmp_pd_mask(r2, vlim, _CMP_LT_OQ)
+                                                & _mm512_cmpneq_epu64_mask(j, hi[h]);
+                            if (cnt[h] <= CELL_LIST)
+                                _mm256_storeu_si256((__m256i *)(buf[h] + cnt[h]),
+                                                    _mm512_cvtepi64_epi32(_mm512_maskz_compress_epi64(ok, j)));
+                            cnt[h] += (size_t)__builtin_popcount((unsigned)ok);
+                        }
+                    }
+                    a0 = e0;
+                }
+            }
+        }
+        for (int h = 0; h < nh; h++) {
+            const size_t i = g->cell_list[h0 + (uint32_t)h];
+            if (cnt[h] > CELL_LIST)
+                return SIZE_MAX;
+            if (!sort_avx512(buf[h], cnt[h]))
+                sort_indices(buf[h], cnt[h], tmp);
+            if (cnt[h] <= room)
+                memcpy(g->nb + i * room, buf[h], cnt[h] * sizeof(uint32_t));
+            g->nb_num[i] = (uint32_t)cnt[h];
+            longest = cnt[h] > longest ? cnt[h] : longest;
+        }
+    }
+    return longest;
+}
+
+static size_t fill_by_cells(pair_force *p, const stencil *sc, const pair_image *m, size_t n, size_t room,
+                            double rl2, int nt, int d)
+{
+    pair_grid *g = &p->grid;
+    const size_t ncells = (size_t)g->ncell[0] * (size_t)g->ncell[1] * (size_t)g->ncell[2];
+    size_t longest = 0;
+    (void)nt;
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN))
+    for (size_t i = 0; i < n; i++) {
+        g->nb_start[i] = i * room;
+        g->nb_num[i] = 0;
+    }
+    PSYS_OMP(omp parallel for schedule(dynamic, 64) num_threads(nt) if (nt > 1) reduction(max: longest))
+    for (size_t c = 0; c < ncells; c++) {
+        const size_t l = d == 3 ? fill_cell(g, sc, m, c, room, rl2, 3) : fill_cell(g, sc, m, c, room, rl2, 2);
+        longest = l > longest ? l : longest; /* SIZE_MAX stays */
+    }
+    return longest;
+}
+#endif
+
 void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, uint32_t c, const unsigned char *own,
                                unsigned char *mark)
 {
@@ -738,7 +891,32 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
     double per = g->per_particle * 1.2 + 4;
     if (!(per <= (double)n)) /* also NaN (a huge radius makes the density estimate inf·0) */
         per = (double)n;
-    for (int exact = 0;; exact++) {
+    /* cell by cell where that runs (full lists, AVX-512, every axis pruned) */
+    bool by_cells = !half && !p->sys->own_mark && scan_has_avx512();
+    for (int k = 0; k < d; k++)
+        by_cells = by_cells && sc.prune[k];
+#ifdef PSYS_SCAN_AVX512
+    if (by_cells) {
+        size_t room = (size_t)per + 8;
+        room = room > g->longest + 8 ? room : g->longest + 8;
+        for (;;) {
+            if (!(room <= SIZE_MAX / 2 / (n ? n : 1)) || !grow_lists(&g->nb, &g->nb_cap, n * room))
+                return false;
+            const size_t longest = fill_by_cells(p, &sc, m, n, room, rls2, ntf, d);
+            if (longest == SIZE_MAX) {
+                by_cells = false; /* a list too long for the scratch: the fill below */
+                break;
+            }
+            g->longest = longest;
+            if (longest <= room)
+                break;
+            room = longest;
+        }
+    }
+#else
+    by_cells = false;
+#endif
+    for (int exact = 0; !by_cells; exact++) {
         g->chunk_off[0] = 0;
         for (size_t c = 0; c < nchunks; c++) {
             size_t i0 = c * CHUNK, i1 = i0 + CHUNK < n ? i0 + CHUNK : n, len = 0;
