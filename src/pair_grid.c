@@ -225,14 +225,14 @@ __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g,
                   : scan_plain(g, xs, i, t, t1, out, cnt, room, rl2, half, 2, NULL, NULL);
 }
 
-/* Sort a[0..n) (n <= 16·M) ascending: a bitonic network over M registers of
- * sixteen indices, the tail padded with UINT32_MAX (sorted to the end, not
- * stored). Stage (k, j) compares elements e and e ^ j, the smaller going
- * first where e & k is clear: across registers for j >= 16, else within
- * each register through a permutation. No branches on the data; sorting
- * each list as it is filled, in cache, beat sorting all of them by
- * transposition (LJ melt, 32,000 atoms: 251.8 against 272.4 ns per
- * atom-step, bench/README). */
+/* Sort a[0..n) (n <= 16·M) ascending: a bitonic network over M registers
+ * of sixteen indices, in the form whose comparators all put the smaller
+ * value first (each merge starts by comparing a block with its mirror
+ * image). Positions from n on hold UINT32_MAX and keep it, so the registers
+ * past the last loaded one are never touched: a list of 77 costs five
+ * registers, not eight. No branches on the data; sorting each list as it
+ * is filled, in cache, beat sorting all of them by transposition (LJ melt,
+ * 32,000 atoms: 251.8 against 272.4 ns per atom-step, bench/README). */
 #define SORT512_REGS 8
 __attribute__((target("avx512f"), always_inline)) static inline void sort512_regs(uint32_t *a, size_t n,
                                                                                    const int M)
@@ -240,41 +240,63 @@ __attribute__((target("avx512f"), always_inline)) static inline void sort512_reg
     __m512i v[SORT512_REGS];
     const __m512i pad = _mm512_set1_epi32(-1), lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12,
                                                                          13, 14, 15);
+    const __m512i rev = _mm512_xor_si512(lane, _mm512_set1_epi32(15));
+    const int U = (int)((n + 15) / 16); /* registers holding data */
     for (int r = 0; r < M; r++) {
         const size_t at = 16 * (size_t)r, left = n > at ? n - at : 0;
         const __mmask16 live = left >= 16 ? (__mmask16)0xffff : (__mmask16)((1u << left) - 1);
-        v[r] = _mm512_mask_loadu_epi32(pad, live, a + at);
+        v[r] = r < U ? _mm512_mask_loadu_epi32(pad, live, a + at) : pad;
     }
-    for (int k = 2; k <= 16 * M; k <<= 1)
-        for (int j = k >> 1; j > 0; j >>= 1) {
+    for (int k = 2; k <= 16 * M; k <<= 1) {
+        if (k <= 16) { /* mirror within each register: lane l against l ^ (k - 1) */
+            const __m512i idx = _mm512_xor_si512(lane, _mm512_set1_epi32(k - 1));
+            unsigned upper = 0; /* lanes that take the larger */
+            for (int l = 0; l < 16; l++)
+                upper |= (unsigned)((l & (k >> 1)) != 0) << l;
+            for (int r = 0; r < M; r++) {
+                if (r >= U)
+                    break;
+                const __m512i w = _mm512_permutexvar_epi32(idx, v[r]);
+                v[r] = _mm512_mask_blend_epi32((__mmask16)upper, _mm512_min_epu32(v[r], w), _mm512_max_epu32(v[r], w));
+            }
+        } else { /* mirror across the registers of each block of k/16 */
+            const int q = k >> 4;
+            for (int r = 0; r < M; r++) {
+                const int r2 = r ^ (q - 1);
+                if ((r & (q >> 1)) || r2 >= U)
+                    continue;
+                const __m512i w = _mm512_permutexvar_epi32(rev, v[r2]);
+                const __m512i hi = _mm512_max_epu32(v[r], w);
+                v[r] = _mm512_min_epu32(v[r], w);
+                v[r2] = _mm512_permutexvar_epi32(rev, hi);
+            }
+        }
+        for (int j = k >> 2; j > 0; j >>= 1) {
             if (j >= 16) {
                 const int q = j >> 4;
                 for (int r = 0; r < M; r++) {
-                    if (r & q)
+                    if ((r & q) || (r | q) >= U)
                         continue;
-                    const __m512i lo = _mm512_min_epu32(v[r], v[r | q]), hi = _mm512_max_epu32(v[r], v[r | q]);
-                    const bool down = ((16 * r) & k) != 0;
-                    v[r] = down ? hi : lo;
-                    v[r | q] = down ? lo : hi;
+                    const __m512i lo = _mm512_min_epu32(v[r], v[r | q]);
+                    v[r | q] = _mm512_max_epu32(v[r], v[r | q]);
+                    v[r] = lo;
                 }
                 continue;
             }
             const __m512i idx = _mm512_xor_si512(lane, _mm512_set1_epi32(j));
-            /* lanes that keep the larger: (l & j) set, flipped where the block runs down */
-            unsigned hi_lanes = 0, down_lanes = 0;
-            for (int l = 0; l < 16; l++) {
-                hi_lanes |= (unsigned)((l & j) != 0) << l;
-                down_lanes |= (unsigned)((l & k) != 0) << l;
-            }
+            unsigned upper = 0;
+            for (int l = 0; l < 16; l++)
+                upper |= (unsigned)((l & j) != 0) << l;
             for (int r = 0; r < M; r++) {
-                const unsigned down = k < 16 ? down_lanes : ((16 * r) & k) ? 0xffffu : 0u;
+                if (r >= U)
+                    break;
                 const __m512i w = _mm512_permutexvar_epi32(idx, v[r]);
-                v[r] = _mm512_mask_blend_epi32((__mmask16)(hi_lanes ^ down), _mm512_min_epu32(v[r], w),
-                                               _mm512_max_epu32(v[r], w));
+                v[r] = _mm512_mask_blend_epi32((__mmask16)upper, _mm512_min_epu32(v[r], w), _mm512_max_epu32(v[r], w));
             }
         }
-    for (int r = 0; r < M; r++) {
-        const size_t at = 16 * (size_t)r, left = n > at ? n - at : 0;
+    }
+    for (int r = 0; r < U; r++) {
+        const size_t at = 16 * (size_t)r, left = n - at;
         const __mmask16 live = left >= 16 ? (__mmask16)0xffff : (__mmask16)((1u << left) - 1);
         _mm512_mask_storeu_epi32(a + at, live, v[r]);
     }
@@ -636,6 +658,16 @@ static size_t fill_by_cells(pair_force *p, const stencil *sc, const pair_image *
     return longest;
 }
 #endif
+
+void psys__pair_sort_list(uint32_t *a, size_t n)
+{
+    uint32_t tmp[SORT_MAX];
+#ifdef PSYS_SCAN_AVX512
+    if (scan_has_avx512() && sort_avx512(a, n))
+        return;
+#endif
+    sort_indices(a, n, tmp);
+}
 
 void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, uint32_t c, const unsigned char *own,
                                unsigned char *mark)

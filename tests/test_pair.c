@@ -6,6 +6,8 @@
 #include "check.h"
 #include "helpers.h"
 
+#include "../src/pair.h"
+
 #include <psys/psys.h>
 
 #include <math.h>
@@ -384,6 +386,39 @@ static void lj_cluster_energy(void)
     CHECK(memcmp(x_by_method[0], x_by_method[1], 27 * 3 * sizeof(double)) == 0);
     free(x_by_method[0]);
     free(x_by_method[1]);
+}
+
+/* ------------------------------------------------------------------ list sorting */
+
+static int cmp_u32(const void *a, const void *b)
+{
+    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The builds' sort of a list (the AVX-512 network where it runs, else
+ * buckets and insertion; PSYS_SCAN_PLAIN forces the latter) against qsort:
+ * every length up to 600, spread and clustered values, duplicates and the
+ * largest index (the network's padding value); nothing past n is touched. */
+static void sort_lists(void)
+{
+    enum { CAP = 640 };
+    uint32_t *a = malloc(CAP * sizeof *a), *b = malloc(CAP * sizeof *b);
+    uint64_t st = 12345;
+    for (int kind = 0; kind < 4; kind++)
+        for (size_t n = 0; n <= 600; n++) {
+            for (size_t i = 0; i < CAP; i++) {
+                st = st * 6364136223846793005ull + 1442695040888963407ull;
+                const uint32_t r = (uint32_t)(st >> 32);
+                a[i] = kind == 0 ? r : kind == 1 ? 5000 + r % 900 : kind == 2 ? r % 7 : UINT32_MAX - r % 3;
+            }
+            memcpy(b, a, CAP * sizeof *a);
+            psys__pair_sort_list(a, n);
+            qsort(b, n, sizeof *b, cmp_u32);
+            CHECK(memcmp(a, b, CAP * sizeof *a) == 0);
+        }
+    free(a);
+    free(b);
 }
 
 /* ------------------------------------------------------------------ grid = direct */
@@ -1395,6 +1430,7 @@ static const check_case cases[] = {
     {"user_law_hand_values", user_law_hand_values},
     {"newton_third_law", newton_third_law},
     {"lj_cluster_energy", lj_cluster_energy},
+    {"sort_lists", sort_lists},
     {"grid_equals_direct_2d", grid_equals_direct_2d},
     {"grid_equals_direct_3d", grid_equals_direct_3d},
     {"grid_equals_direct_periodic_2d", grid_equals_direct_periodic_2d},
