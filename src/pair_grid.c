@@ -21,7 +21,11 @@
  * CHUNK consecutive indices, each chunk writes into its own region of the
  * list array, sized from the previous build's neighbours per particle; a
  * region that overflows makes the build resize the regions and run again
- * (this, and a growing system, are the only times the array grows). */
+ * (this, and a growing system, are the only times the array grows). With
+ * AVX-512, full lists are filled cell by cell instead (fill_by_cells):
+ * each particle gets a slot as long as the last build's longest list plus
+ * eight (or 1.2 times its mean plus twelve, if more), and a longer list
+ * makes the build run again with slots that fit it. */
 #include "pair.h"
 
 #include <stdlib.h>
