@@ -523,6 +523,82 @@ FILL_FN(fill_3h, 3, true)
  * CELL_LIST (the caller uses fill_* then). */
 #define CELL_HOME 16
 #define CELL_LIST SORT_MAX
+#define UNION_MAX 1024
+
+/* The home cell's candidates gathered into one array (union of its runs,
+ * each entry with its run's image shift, NaN-padded to whole vectors of
+ * sixteen): fill_cell's lists for home slot sl, into out (CELL_LIST + 16
+ * entries); returns the list's length (past CELL_LIST: counted, not
+ * stored). The test is scan_avx512's on the same numbers, (x_i − shift) −
+ * x_j, except that an unshifted cell skips the exact subtraction of 0. */
+__attribute__((target("avx512f"), always_inline)) static inline size_t
+union_list(const pair_grid *g, size_t sl, double (*ux)[UNION_MAX + 16], double (*us)[UNION_MAX + 16],
+           const uint32_t *uj, size_t nu, double rl2, uint32_t *out, const int d, const bool shifted)
+{
+    const size_t stride = g->cx_stride;
+    const __m512d X0 = _mm512_set1_pd(g->cell_x[sl]), X1 = _mm512_set1_pd(g->cell_x[stride + sl]);
+    const __m512d X2 = _mm512_set1_pd(d == 3 ? g->cell_x[2 * stride + sl] : 0);
+    const __m512d vlim = _mm512_set1_pd(rl2), zero = _mm512_setzero_pd();
+    const __m512i vi = _mm512_set1_epi32((int)g->cell_list[sl]);
+    size_t cnt = 0;
+    for (size_t t = 0; t < nu; t += 16) {
+        __mmask16 ok = 0;
+        for (int half = 0; half < 2; half++) {
+            const size_t q = t + 8 * (size_t)half;
+            __m512d a = shifted ? _mm512_sub_pd(X0, _mm512_loadu_pd(us[0] + q)) : X0;
+            __m512d dx = _mm512_sub_pd(a, _mm512_loadu_pd(ux[0] + q));
+            __m512d r2 = _mm512_add_pd(zero, _mm512_mul_pd(dx, dx));
+            a = shifted ? _mm512_sub_pd(X1, _mm512_loadu_pd(us[1] + q)) : X1;
+            dx = _mm512_sub_pd(a, _mm512_loadu_pd(ux[1] + q));
+            r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
+            if (d == 3) {
+                a = shifted ? _mm512_sub_pd(X2, _mm512_loadu_pd(us[2] + q)) : X2;
+                dx = _mm512_sub_pd(a, _mm512_loadu_pd(ux[2] + q));
+                r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
+            }
+            ok |= (__mmask16)((unsigned)_mm512_cmp_pd_mask(r2, vlim, _CMP_LT_OQ) << (8 * half));
+        }
+        const __m512i j = _mm512_loadu_si512(uj + t);
+        ok &= _mm512_cmpneq_epu32_mask(j, vi);
+        if (cnt <= CELL_LIST)
+            _mm512_storeu_si512(out + cnt, _mm512_maskz_compress_epi32(ok, j));
+        cnt += (size_t)__builtin_popcount((unsigned)ok);
+    }
+    return cnt;
+}
+
+/* Append candidates [t0, t1) of cell_x/cell_list, image shift sh[], to the
+ * union at *nu; false if it would pass UNION_MAX. The shifts are stored
+ * from the first shifted run on (*shifted; the entries before it get 0).
+ * Whole vectors are stored (the arrays have sixteen entries of slack past
+ * UNION_MAX; what lies past the end is overwritten or padded later):
+ * masked stores were a fifth of the fill's time. */
+__attribute__((target("avx512f"), always_inline)) static inline bool
+union_add(const pair_grid *g, uint32_t t0, uint32_t t1, const double sh[3], double (*ux)[UNION_MAX + 16],
+          double (*us)[UNION_MAX + 16], uint32_t *uj, size_t *nu, bool *shifted, const int d)
+{
+    const size_t len = t1 - t0, at = *nu;
+    if (len > UNION_MAX - at)
+        return false;
+    if (!*shifted && (sh[0] != 0 || sh[1] != 0 || sh[2] != 0)) {
+        *shifted = true;
+        for (int k = 0; k < 3; k++)
+            for (size_t q = 0; q < at; q++)
+                us[k][q] = 0;
+    }
+    for (size_t q = 0; q < len; q += 8) {
+        const __mmask8 live = len - q >= 8 ? (__mmask8)0xff : (__mmask8)((1u << (len - q)) - 1);
+        for (int k = 0; k < d; k++) {
+            _mm512_storeu_pd(ux[k] + at + q, _mm512_maskz_loadu_pd(live, g->cell_x + (size_t)k * g->cx_stride + t0 + q));
+            if (*shifted)
+                _mm512_storeu_pd(us[k] + at + q, _mm512_set1_pd(sh[k]));
+        }
+        _mm256_storeu_si256((__m256i *)(uj + at + q),
+                            _mm512_castsi512_si256(_mm512_maskz_loadu_epi32((__mmask16)live, g->cell_list + t0 + q)));
+    }
+    *nu = at + len;
+    return true;
+}
 /* fill_by_cells for home cell c: the longest of its lists, or SIZE_MAX if
  * some list passed CELL_LIST. */
 __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const stencil *sc, const pair_image *m,
@@ -560,6 +636,66 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
             img[k][a] = sh;
             gap2[k][a] = k < d ? gap * gap : 0;
         }
+    {
+        /* the union of the runs, when it fits: whole vectors, one compress per sixteen candidates */
+        double ux[3][UNION_MAX + 16], us[3][UNION_MAX + 16];
+        uint32_t uj[UNION_MAX + 16], out[CELL_LIST + 16];
+        size_t nu = 0;
+        bool fits = true, shifted = false;
+        const int nz = d == 3 ? sc->n[2] : 1;
+        for (int a2 = 0; a2 < nz && fits; a2++) {
+            const int z = wc[2][a2];
+            if (gap2[2][a2] > lim || z < 0)
+                continue;
+            for (int a1 = 0; a1 < sc->n[1] && fits; a1++) {
+                const double gyz = gap2[2][a2] + gap2[1][a1];
+                const int y = wc[1][a1];
+                if (gyz > lim || y < 0)
+                    continue;
+                const size_t row = (size_t)g->ncell[0] * ((size_t)y + (size_t)g->ncell[1] * (size_t)z);
+                for (int a0 = 0; a0 < sc->n[0] && fits;) {
+                    const int xx = wc[0][a0];
+                    if (gyz + gap2[0][a0] > lim || xx < 0) {
+                        a0++;
+                        continue;
+                    }
+                    int e0 = a0 + 1;
+                    while (e0 < sc->n[0] && wc[0][e0] == wc[0][e0 - 1] + 1 && img[0][e0] == img[0][a0]
+                           && !(gyz + gap2[0][e0] > lim))
+                        e0++;
+                    const double sh[3] = {img[0][a0], img[1][a1], d == 3 ? img[2][a2] : 0};
+                    fits = union_add(g, g->cell_start[row + (size_t)xx], g->cell_start[row + (size_t)wc[0][e0 - 1] + 1],
+                                     sh, ux, us, uj, &nu, &shifted, d);
+                    a0 = e0;
+                }
+            }
+        }
+        if (fits) {
+            for (size_t q = nu; q < (nu + 15) / 16 * 16; q++) {
+                for (int k = 0; k < 3; k++) {
+                    ux[k][q] = NAN;
+                    us[k][q] = 0;
+                }
+                uj[q] = 0;
+            }
+            for (uint32_t sl = s0; sl < s1; sl++) {
+                const size_t cnt = d == 3 ? (shifted ? union_list(g, sl, ux, us, uj, nu, rl2, out, 3, true)
+                                                     : union_list(g, sl, ux, us, uj, nu, rl2, out, 3, false))
+                                          : (shifted ? union_list(g, sl, ux, us, uj, nu, rl2, out, 2, true)
+                                                     : union_list(g, sl, ux, us, uj, nu, rl2, out, 2, false));
+                if (cnt > CELL_LIST)
+                    return SIZE_MAX;
+                if (!sort_avx512(out, cnt))
+                    sort_indices(out, cnt, tmp);
+                const size_t i = g->cell_list[sl];
+                if (cnt <= room)
+                    memcpy(g->nb + i * room, out, cnt * sizeof(uint32_t));
+                g->nb_num[i] = (uint32_t)cnt;
+                longest = cnt > longest ? cnt : longest;
+            }
+            return longest;
+        }
+    }
     for (uint32_t h0 = s0; h0 < s1; h0 += CELL_HOME) {
         const int nh = s1 - h0 < CELL_HOME ? (int)(s1 - h0) : CELL_HOME;
         size_t cnt[CELL_HOME];

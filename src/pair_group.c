@@ -214,7 +214,8 @@ AVX2 static bool group_rows_as(const group_consts *c, int law, int d, int mode, 
 
 /* Whether rows i0..i0+width-1 lie at least the list radius plus twice the
  * skin inside every periodic face: then their partners normally need no
- * image (the group loops check it). */
+ * image (the group loops check it, unless every position lies within half
+ * a skin of the box: see psys__pair_group_forces). */
 static inline bool group_interior(const group_consts *c, int d, const double *X0, const double *X1,
                                   const double *X2, size_t i0, int width)
 {
@@ -399,7 +400,7 @@ typedef struct group_ctx {
  * rows of a group in which a difference was flagged even with the image go
  * through the row loop one by one. */
 static void group_chunk(const pair_force *p, const pair_image *m, const group_ctx *x, int width, const double *w,
-                        size_t b0, size_t b1, const unsigned char *rows, double *out)
+                        size_t b0, size_t b1, const unsigned char *rows, bool in_box, double *out)
 {
     const pair_grid *g = &p->grid;
     const int d = p->dim, law = p->law;
@@ -415,7 +416,7 @@ static void group_chunk(const pair_force *p, const pair_image *m, const group_ct
         /* groups away from the periodic faces first without the image: only
          * a flagged group pays for it */
         int mode = !img                                                 ? GROUP_PLAIN
-                   : group_interior(&x->c4, d, X0, X1, X2, i0, width) ? GROUP_CHECK
+                   : group_interior(&x->c4, d, X0, X1, X2, i0, width) ? (in_box ? GROUP_PLAIN : GROUP_CHECK)
                                                                        : GROUP_IMAGE;
         const group_in in = {X0, X1, X2, g->xq, g->gl + g->gl_start[b], g->nb_num + i0,
                              (uint32_t)((g->gl_start[b + 1] - g->gl_start[b]) / (size_t)width), i0};
@@ -518,18 +519,40 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
     const bool three = p->dim == 3;
     double *Q = g->xq;
+    /* the positions' bounds: if every one lies within half a skin of the
+     * box, a listed partner of an interior row (group_interior) is at less
+     * than the list radius plus the skin (the rebuild rule), so its raw
+     * difference is its minimum image and less than half a box: the check
+     * of GROUP_CHECK cannot fire and is skipped (GROUP_PLAIN, the same bits) */
+    double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
     (void)nt;
-    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN))
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN) \
+             reduction(min: lo0, lo1, lo2) reduction(max: hi0, hi1, hi2))
     for (size_t i = 0; i < n; i++) {
-        Q[4 * i] = X0[i];
-        Q[4 * i + 1] = X1[i];
-        Q[4 * i + 2] = three ? X2[i] : 0.0;
+        const double a = X0[i], b = X1[i], z = three ? X2[i] : 0.0;
+        Q[4 * i] = a;
+        Q[4 * i + 1] = b;
+        Q[4 * i + 2] = z;
         Q[4 * i + 3] = 0.0;
+        lo0 = a < lo0 ? a : lo0;
+        hi0 = a > hi0 ? a : hi0;
+        lo1 = b < lo1 ? b : lo1;
+        hi1 = b > hi1 ? b : hi1;
+        lo2 = z < lo2 ? z : lo2;
+        hi2 = z > hi2 ? z : hi2;
+    }
+    bool in_box = m->on;
+    {
+        const psys__box *box = &p->sys->box;
+        const double lo[3] = {lo0, lo1, lo2}, hi[3] = {hi0, hi1, hi2}, slack = 0.5 * p->def.skin;
+        for (int k = 0; k < p->dim; k++)
+            if (m->per[k])
+                in_box = in_box && lo[k] >= box->lo[k] - slack && hi[k] <= box->hi[k] + slack;
     }
     PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
     for (size_t q = 0; q < nchunks; q++) {
         const size_t b0 = q * GROUP_CHUNK, b1 = b0 + GROUP_CHUNK < ng ? b0 + GROUP_CHUNK : ng;
-        group_chunk(p, m, &x, width, w, b0, b1, rows, out);
+        group_chunk(p, m, &x, width, w, b0, b1, rows, in_box, out);
     }
     /* the last n mod width rows, one at a time */
     for (size_t i = ng * (size_t)width; i < n; i++) {

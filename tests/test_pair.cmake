@@ -1,7 +1,7 @@
 psys_c_test(test_pair
   gravity_hand_values coulomb_hand_values lennard_jones_hand_values soft_repulsion_hand_values
   user_law_hand_values newton_third_law lj_cluster_energy sort_lists
-  grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_periodic_2d grid_equals_direct_periodic_3d
+  grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_periodic_2d grid_equals_direct_periodic_3d grid_equals_direct_dense
   grid_rebuild_criterion grid_cache_matches_direct minimum_image minimum_image_far minimum_image_far_groups wrapping box_validation
   thread_determinism_grid thread_determinism_direct_bh barnes_hut_error_2d barnes_hut_error_3d kepler_orbit_closes figure_eight_returns jacobians_match_differences
   particles_added_later scene_round_trip checkpoint_resume_bit_exact scene_bad_input)
@@ -9,7 +9,7 @@ psys_c_test(test_pair
 # side by side on few cores, where spinning threads starve each other.
 # The grid tests again with the portable candidate scan of the list builds
 # (pair_grid.c uses an AVX-512 one where the CPU has it): the same bits.
-foreach(case sort_lists grid_equals_direct_3d grid_equals_direct_periodic_3d grid_cache_matches_direct thread_determinism_grid
+foreach(case sort_lists grid_equals_direct_3d grid_equals_direct_periodic_3d grid_equals_direct_dense grid_cache_matches_direct thread_determinism_grid
              checkpoint_resume_bit_exact)
   add_test(NAME test_pair.plain_scan.${case} COMMAND test_pair ${case})
 endforeach()
