@@ -75,6 +75,8 @@ typedef struct pair_grid {
     size_t chunks_cap;
     double per_particle;   /* list entries per particle at the last build (region sizing) */
     size_t longest;        /* the longest list of the last cell-by-cell build (its room per particle) */
+    void *win;             /* win_n per-thread candidate windows of the cell-by-cell build (pair_grid.c) */
+    size_t win_n;
     bool half;             /* lists hold only partners j > i (one thread evaluates), else all */
     bool want_full;        /* full lists from now on (a Jacobian was asked for) */
     int ncell[3];

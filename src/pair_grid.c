@@ -54,6 +54,7 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->xq_mem);
     free(g->gl);
     free(g->gl_start);
+    free(g->win);
     memset(g, 0, sizeof *g);
 }
 
@@ -523,17 +524,28 @@ FILL_FN(fill_3h, 3, true)
  * CELL_LIST (the caller uses fill_* then). */
 #define CELL_HOME 16
 #define CELL_LIST SORT_MAX
-#define UNION_MAX 1024
 
-/* The home cell's candidates gathered into one array (union of its runs,
- * each entry with its run's image shift, NaN-padded to whole vectors of
- * sixteen): fill_cell's lists for home slot sl, into out (CELL_LIST + 16
- * entries); returns the list's length (past CELL_LIST: counted, not
- * stored). The test is scan_avx512's on the same numbers, (x_i − shift) −
- * x_j, except that an unshifted cell skips the exact subtraction of 0. */
+/* The candidates of a line of home cells (fill_line): the cells of up to
+ * five slabs (one y index each) around the current home cell, each slab's
+ * runs of cells appended as its cells' coordinates, their image shifts and
+ * indices; sliding to the next home cell drops the first slab and appends
+ * one, so each candidate is copied once per line instead of once per home
+ * cell. Entries [start, end) are live; sixteen past end are padding. */
+#define WIN_CAP 2048
+typedef struct cand_win {
+    double x[3][WIN_CAP + 16], s[3][WIN_CAP + 16];
+    uint32_t j[WIN_CAP + 16];
+    size_t start, end;
+} cand_win;
+
+/* Home slot sl's list from the window's nu entries at x/s/j (each pointing
+ * at the first live one), into out (CELL_LIST + 16 entries); returns its
+ * length (past CELL_LIST: counted, not stored). The test is scan_avx512's
+ * on the same numbers, (x_i − shift) − x_j, except that a window without
+ * shifts skips the exact subtraction of 0. */
 __attribute__((target("avx512f"), always_inline)) static inline size_t
-union_list(const pair_grid *g, size_t sl, double (*ux)[UNION_MAX + 16], double (*us)[UNION_MAX + 16],
-           const uint32_t *uj, size_t nu, double rl2, uint32_t *out, const int d, const bool shifted)
+window_list(const pair_grid *g, size_t sl, const double *const x[3], const double *const sh[3], const uint32_t *uj,
+            size_t nu, double rl2, uint32_t *out, const int d, const bool shifted)
 {
     const size_t stride = g->cx_stride;
     const __m512d X0 = _mm512_set1_pd(g->cell_x[sl]), X1 = _mm512_set1_pd(g->cell_x[stride + sl]);
@@ -545,15 +557,15 @@ union_list(const pair_grid *g, size_t sl, double (*ux)[UNION_MAX + 16], double (
         __mmask16 ok = 0;
         for (int half = 0; half < 2; half++) {
             const size_t q = t + 8 * (size_t)half;
-            __m512d a = shifted ? _mm512_sub_pd(X0, _mm512_loadu_pd(us[0] + q)) : X0;
-            __m512d dx = _mm512_sub_pd(a, _mm512_loadu_pd(ux[0] + q));
+            __m512d a = shifted ? _mm512_sub_pd(X0, _mm512_loadu_pd(sh[0] + q)) : X0;
+            __m512d dx = _mm512_sub_pd(a, _mm512_loadu_pd(x[0] + q));
             __m512d r2 = _mm512_add_pd(zero, _mm512_mul_pd(dx, dx));
-            a = shifted ? _mm512_sub_pd(X1, _mm512_loadu_pd(us[1] + q)) : X1;
-            dx = _mm512_sub_pd(a, _mm512_loadu_pd(ux[1] + q));
+            a = shifted ? _mm512_sub_pd(X1, _mm512_loadu_pd(sh[1] + q)) : X1;
+            dx = _mm512_sub_pd(a, _mm512_loadu_pd(x[1] + q));
             r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
             if (d == 3) {
-                a = shifted ? _mm512_sub_pd(X2, _mm512_loadu_pd(us[2] + q)) : X2;
-                dx = _mm512_sub_pd(a, _mm512_loadu_pd(ux[2] + q));
+                a = shifted ? _mm512_sub_pd(X2, _mm512_loadu_pd(sh[2] + q)) : X2;
+                dx = _mm512_sub_pd(a, _mm512_loadu_pd(x[2] + q));
                 r2 = _mm512_add_pd(r2, _mm512_mul_pd(dx, dx));
             }
             ok |= (__mmask16)((unsigned)_mm512_cmp_pd_mask(r2, vlim, _CMP_LT_OQ) << (8 * half));
@@ -567,38 +579,42 @@ union_list(const pair_grid *g, size_t sl, double (*ux)[UNION_MAX + 16], double (
     return cnt;
 }
 
-/* Append candidates [t0, t1) of cell_x/cell_list, image shift sh[], to the
- * union at *nu; false if it would pass UNION_MAX. The shifts are stored
- * from the first shifted run on (*shifted; the entries before it get 0).
- * Whole vectors are stored (the arrays have sixteen entries of slack past
- * UNION_MAX; what lies past the end is overwritten or padded later):
- * masked stores were a fifth of the fill's time. */
+/* Append candidates [t0, t1) of cell_x/cell_list with image shift sh[] to
+ * the window, moving the live entries to the front when the end is reached;
+ * false if they do not fit even then. Whole vectors are stored (the
+ * padding past the end takes what spills): masked stores were a fifth of
+ * the fill's time. */
 __attribute__((target("avx512f"), always_inline)) static inline bool
-union_add(const pair_grid *g, uint32_t t0, uint32_t t1, const double sh[3], double (*ux)[UNION_MAX + 16],
-          double (*us)[UNION_MAX + 16], uint32_t *uj, size_t *nu, bool *shifted, const int d)
+window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const double sh[3], const int d)
 {
-    const size_t len = t1 - t0, at = *nu;
-    if (len > UNION_MAX - at)
-        return false;
-    if (!*shifted && (sh[0] != 0 || sh[1] != 0 || sh[2] != 0)) {
-        *shifted = true;
-        for (int k = 0; k < 3; k++)
-            for (size_t q = 0; q < at; q++)
-                us[k][q] = 0;
+    const size_t len = t1 - t0;
+    if (len > WIN_CAP - w->end) {
+        const size_t live = w->end - w->start;
+        if (len > WIN_CAP - live)
+            return false;
+        for (int k = 0; k < 3; k++) {
+            memmove(w->x[k], w->x[k] + w->start, live * sizeof(double));
+            memmove(w->s[k], w->s[k] + w->start, live * sizeof(double));
+        }
+        memmove(w->j, w->j + w->start, live * sizeof(uint32_t));
+        w->start = 0;
+        w->end = live;
     }
+    const size_t at = w->end;
     for (size_t q = 0; q < len; q += 8) {
         const __mmask8 live = len - q >= 8 ? (__mmask8)0xff : (__mmask8)((1u << (len - q)) - 1);
         for (int k = 0; k < d; k++) {
-            _mm512_storeu_pd(ux[k] + at + q, _mm512_maskz_loadu_pd(live, g->cell_x + (size_t)k * g->cx_stride + t0 + q));
-            if (*shifted)
-                _mm512_storeu_pd(us[k] + at + q, _mm512_set1_pd(sh[k]));
+            _mm512_storeu_pd(w->x[k] + at + q,
+                             _mm512_maskz_loadu_pd(live, g->cell_x + (size_t)k * g->cx_stride + t0 + q));
+            _mm512_storeu_pd(w->s[k] + at + q, _mm512_set1_pd(sh[k]));
         }
-        _mm256_storeu_si256((__m256i *)(uj + at + q),
+        _mm256_storeu_si256((__m256i *)(w->j + at + q),
                             _mm512_castsi512_si256(_mm512_maskz_loadu_epi32((__mmask16)live, g->cell_list + t0 + q)));
     }
-    *nu = at + len;
+    w->end = at + len;
     return true;
 }
+
 /* fill_by_cells for home cell c: the longest of its lists, or SIZE_MAX if
  * some list passed CELL_LIST. */
 __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const stencil *sc, const pair_image *m,
@@ -636,66 +652,6 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
             img[k][a] = sh;
             gap2[k][a] = k < d ? gap * gap : 0;
         }
-    {
-        /* the union of the runs, when it fits: whole vectors, one compress per sixteen candidates */
-        double ux[3][UNION_MAX + 16], us[3][UNION_MAX + 16];
-        uint32_t uj[UNION_MAX + 16], out[CELL_LIST + 16];
-        size_t nu = 0;
-        bool fits = true, shifted = false;
-        const int nz = d == 3 ? sc->n[2] : 1;
-        for (int a2 = 0; a2 < nz && fits; a2++) {
-            const int z = wc[2][a2];
-            if (gap2[2][a2] > lim || z < 0)
-                continue;
-            for (int a1 = 0; a1 < sc->n[1] && fits; a1++) {
-                const double gyz = gap2[2][a2] + gap2[1][a1];
-                const int y = wc[1][a1];
-                if (gyz > lim || y < 0)
-                    continue;
-                const size_t row = (size_t)g->ncell[0] * ((size_t)y + (size_t)g->ncell[1] * (size_t)z);
-                for (int a0 = 0; a0 < sc->n[0] && fits;) {
-                    const int xx = wc[0][a0];
-                    if (gyz + gap2[0][a0] > lim || xx < 0) {
-                        a0++;
-                        continue;
-                    }
-                    int e0 = a0 + 1;
-                    while (e0 < sc->n[0] && wc[0][e0] == wc[0][e0 - 1] + 1 && img[0][e0] == img[0][a0]
-                           && !(gyz + gap2[0][e0] > lim))
-                        e0++;
-                    const double sh[3] = {img[0][a0], img[1][a1], d == 3 ? img[2][a2] : 0};
-                    fits = union_add(g, g->cell_start[row + (size_t)xx], g->cell_start[row + (size_t)wc[0][e0 - 1] + 1],
-                                     sh, ux, us, uj, &nu, &shifted, d);
-                    a0 = e0;
-                }
-            }
-        }
-        if (fits) {
-            for (size_t q = nu; q < (nu + 15) / 16 * 16; q++) {
-                for (int k = 0; k < 3; k++) {
-                    ux[k][q] = NAN;
-                    us[k][q] = 0;
-                }
-                uj[q] = 0;
-            }
-            for (uint32_t sl = s0; sl < s1; sl++) {
-                const size_t cnt = d == 3 ? (shifted ? union_list(g, sl, ux, us, uj, nu, rl2, out, 3, true)
-                                                     : union_list(g, sl, ux, us, uj, nu, rl2, out, 3, false))
-                                          : (shifted ? union_list(g, sl, ux, us, uj, nu, rl2, out, 2, true)
-                                                     : union_list(g, sl, ux, us, uj, nu, rl2, out, 2, false));
-                if (cnt > CELL_LIST)
-                    return SIZE_MAX;
-                if (!sort_avx512(out, cnt))
-                    sort_indices(out, cnt, tmp);
-                const size_t i = g->cell_list[sl];
-                if (cnt <= room)
-                    memcpy(g->nb + i * room, out, cnt * sizeof(uint32_t));
-                g->nb_num[i] = (uint32_t)cnt;
-                longest = cnt > longest ? cnt : longest;
-            }
-            return longest;
-        }
-    }
     for (uint32_t h0 = s0; h0 < s1; h0 += CELL_HOME) {
         const int nh = s1 - h0 < CELL_HOME ? (int)(s1 - h0) : CELL_HOME;
         size_t cnt[CELL_HOME];
@@ -778,22 +734,181 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
     return longest;
 }
 
+/* The neighbours of cell coordinate c on axis k, for offsets sc->off[k]:
+ * wrapped cell (-1 outside a free axis), image shift, squared gap. */
+static void cell_offsets(const pair_grid *g, const stencil *sc, const pair_image *m, int k, int c, int d, int wc[5],
+                         double img[5], double gap2[5])
+{
+    for (int a = 0; a < sc->n[k]; a++) {
+        const int o = sc->off[k][a], nk = g->ncell[k];
+        int v = c + o;
+        double sh = 0;
+        if (m->per[k]) {
+            if (v < 0) {
+                v += nk;
+                sh = -m->len[k];
+            } else if (v >= nk) {
+                v -= nk;
+                sh = m->len[k];
+            }
+        } else if (v < 0 || v >= nk) {
+            v = -1;
+        }
+        const double gap = o == 0 ? 0 : (double)(abs(o) - 1) * g->cell_size[k];
+        wc[a] = v;
+        img[a] = sh;
+        gap2[a] = k < d ? gap * gap : 0;
+    }
+}
+
+/* fill_by_cells for the line of home cells (cx, 0..ny-1, cz), sliding a
+ * window of slabs along y (the stencil's five y offsets; cells pruned by
+ * their gap in x and z only, a superset of what each home cell keeps): the
+ * longest list, or SIZE_MAX if some list passed CELL_LIST. Where the window
+ * would pass WIN_CAP, the rest of the line goes cell by cell (fill_cell). */
+__attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const stencil *sc, const pair_image *m,
+                                                            int cx, int cz, size_t room, double rl2, const int d,
+                                                            cand_win *w)
+{
+    const double lim = rl2 * (1 + 1e-6);
+    const int nx = g->ncell[0], ny = g->ncell[1];
+    int wc0[5], wc2[5] = {0};
+    double img0[5], gap0[5], img2[5] = {0}, gap2z[5] = {0};
+    cell_offsets(g, sc, m, 0, cx, d, wc0, img0, gap0);
+    if (d == 3)
+        cell_offsets(g, sc, m, 2, cz, d, wc2, img2, gap2z);
+    const int nzo = d == 3 ? sc->n[2] : 1;
+    size_t blk[8] = {0}, longest = 0;
+    bool bsh[8] = {false}, broken = false;
+    uint32_t out[CELL_LIST + 16], tmp[SORT_MAX];
+    w->start = w->end = 0;
+    /* slab `add` (unwrapped y) enters at slot add & 7; then home cell add - 2 */
+    for (int add = -2; add < ny + 2; add++) {
+        if (!broken) {
+            const size_t before = w->end - w->start; /* live entries before the slab */
+            int wy = add;
+            double sy = 0;
+            bool valid = true, any = false;
+            if (m->per[1]) {
+                if (wy >= ny) {
+                    wy -= ny;
+                    sy = m->len[1];
+                } else if (wy < 0) {
+                    wy += ny;
+                    sy = -m->len[1];
+                }
+            } else if (wy < 0 || wy >= ny) {
+                valid = false;
+            }
+            for (int a2 = 0; a2 < nzo && valid && !broken; a2++) {
+                const int z = d == 3 ? wc2[a2] : 0;
+                if (gap2z[a2] > lim || z < 0)
+                    continue;
+                const size_t row = (size_t)nx * ((size_t)wy + (size_t)ny * (size_t)z);
+                for (int a0 = 0; a0 < sc->n[0] && !broken;) {
+                    const int xx = wc0[a0];
+                    if (gap2z[a2] + gap0[a0] > lim || xx < 0) {
+                        a0++;
+                        continue;
+                    }
+                    int e0 = a0 + 1;
+                    while (e0 < sc->n[0] && wc0[e0] == wc0[e0 - 1] + 1 && img0[e0] == img0[a0]
+                           && !(gap2z[a2] + gap0[e0] > lim))
+                        e0++;
+                    const double sh[3] = {img0[a0], sy, img2[a2]};
+                    any |= sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
+                    broken = !window_add(g, w, g->cell_start[row + (size_t)xx],
+                                         g->cell_start[row + (size_t)wc0[e0 - 1] + 1], sh, d);
+                    a0 = e0;
+                }
+            }
+            blk[add & 7] = w->end - w->start - before;
+            bsh[add & 7] = any;
+        }
+        if (add < 2)
+            continue;
+        const int cy = add - 2;
+        const size_t c = (size_t)cx + (size_t)nx * ((size_t)cy + (size_t)ny * (size_t)cz);
+        const uint32_t s0 = g->cell_start[c], s1 = g->cell_start[c + 1];
+        if (broken) {
+            const size_t l = fill_cell(g, sc, m, c, room, rl2, d);
+            if (l == SIZE_MAX)
+                return SIZE_MAX;
+            longest = l > longest ? l : longest;
+            continue;
+        }
+        const size_t nu = w->end - w->start;
+        bool shifted = false;
+        for (int o = cy - 2; o <= cy + 2; o++)
+            shifted |= bsh[(o + 8) & 7];
+        if (s0 < s1) {
+            for (size_t q = w->end; q < w->end + 16; q++) {
+                for (int k = 0; k < 3; k++) {
+                    w->x[k][q] = NAN;
+                    w->s[k][q] = 0;
+                }
+                w->j[q] = 0;
+            }
+            const double *const xs[3] = {w->x[0] + w->start, w->x[1] + w->start, w->x[2] + w->start};
+            const double *const ss[3] = {w->s[0] + w->start, w->s[1] + w->start, w->s[2] + w->start};
+            const uint32_t *js = w->j + w->start;
+            for (uint32_t sl = s0; sl < s1; sl++) {
+                const size_t cnt = d == 3 ? (shifted ? window_list(g, sl, xs, ss, js, nu, rl2, out, 3, true)
+                                                     : window_list(g, sl, xs, ss, js, nu, rl2, out, 3, false))
+                                          : (shifted ? window_list(g, sl, xs, ss, js, nu, rl2, out, 2, true)
+                                                     : window_list(g, sl, xs, ss, js, nu, rl2, out, 2, false));
+                if (cnt > CELL_LIST)
+                    return SIZE_MAX;
+                if (!sort_avx512(out, cnt))
+                    sort_indices(out, cnt, tmp);
+                const size_t i = g->cell_list[sl];
+                if (cnt <= room)
+                    memcpy(g->nb + i * room, out, cnt * sizeof(uint32_t));
+                g->nb_num[i] = (uint32_t)cnt;
+                longest = cnt > longest ? cnt : longest;
+            }
+        }
+        w->start += blk[(cy - 2 + 8) & 7]; /* the slab cy - 2 leaves */
+    }
+    return longest;
+}
+
 static size_t fill_by_cells(pair_force *p, const stencil *sc, const pair_image *m, size_t n, size_t room,
                             double rl2, int nt, int d)
 {
     pair_grid *g = &p->grid;
-    const size_t ncells = (size_t)g->ncell[0] * (size_t)g->ncell[1] * (size_t)g->ncell[2];
+    const size_t nlines = (size_t)g->ncell[0] * (size_t)g->ncell[2];
     size_t longest = 0;
+    if (nt < 1)
+        nt = 1;
+    if ((size_t)nt > g->win_n) {
+        free(g->win);
+        g->win = psys__realloc(NULL, (size_t)nt, sizeof(cand_win));
+        g->win_n = g->win ? (size_t)nt : 0;
+        if (!g->win)
+            return SIZE_MAX; /* the fill below instead */
+    }
+    cand_win *wins = g->win;
     (void)nt;
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN))
     for (size_t i = 0; i < n; i++) {
         g->nb_start[i] = i * room;
         g->nb_num[i] = 0;
     }
-    PSYS_OMP(omp parallel for schedule(dynamic, 64) num_threads(nt) if (nt > 1) reduction(max: longest))
-    for (size_t c = 0; c < ncells; c++) {
-        const size_t l = d == 3 ? fill_cell(g, sc, m, c, room, rl2, 3) : fill_cell(g, sc, m, c, room, rl2, 2);
-        longest = l > longest ? l : longest; /* SIZE_MAX stays */
+    PSYS_OMP(omp parallel num_threads(nt) if (nt > 1))
+    {
+#ifdef _OPENMP
+        cand_win *w = wins + omp_get_thread_num();
+#else
+        cand_win *w = wins;
+#endif
+        PSYS_OMP(omp for schedule(dynamic, 2) reduction(max: longest))
+        for (size_t L = 0; L < nlines; L++) {
+            const int cx = (int)(L % (size_t)g->ncell[0]), cz = (int)(L / (size_t)g->ncell[0]);
+            const size_t l = d == 3 ? fill_line(g, sc, m, cx, cz, room, rl2, 3, w)
+                                    : fill_line(g, sc, m, cx, cz, room, rl2, 2, w);
+            longest = l > longest ? l : longest; /* SIZE_MAX stays */
+        }
     }
     return longest;
 }

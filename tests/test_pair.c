@@ -516,9 +516,10 @@ static void grid_equals_direct_periodic_3d(void)
 
 /* Denser clouds in a box of 7 cells a side (list radius 0.35, cells 0.2;
  * x and y periodic, z free): 1,500 particles, whose candidates per home cell
- * (about 550) the AVX-512 build gathers into one array, and 6,000, whose
- * candidates (about 2,200) pass that array's 1,024 and go run by run, with
- * lists of about 400. Each way the same forces as direct. */
+ * (about 550) the AVX-512 build gathers into one sliding window, and 6,000,
+ * whose candidates (about 2,200) pass the window's 2,048 in most lines,
+ * which then go cell by cell and run by run, with lists of about 400. Each
+ * way the same forces as direct. */
 static void grid_equals_direct_dense(void)
 {
     double len[3] = {1.4, 1.4, 1.4};
