@@ -77,7 +77,7 @@ typedef struct group_consts {
         };
         __m256d v[GROUP_NCONST];
     };
-    double inlo[3], inhi[3]; /* group_interior's bounds (±inf on free axes) */
+    double inlo[3], inhi[3]; /* group_near's bounds (±inf on free axes) */
 } group_consts;
 _Static_assert(offsetof(group_consts, radius) == (GROUP_NCONST - 1) * sizeof(__m256d), "GROUP_NCONST");
 
@@ -113,7 +113,10 @@ AVX2 static inline __m256d group_kernel(const group_consts *c, const int law, __
  * flagging any |x_i - x_j| above half a box on a periodic axis (then the
  * minimum image would have changed something); or through the one-box
  * minimum image, flagging |x_i - x_j| of 1.5 boxes or more. */
-enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE };
+enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE, GROUP_IMAGE_X, GROUP_IMAGE_Y, GROUP_IMAGE_Z };
+/* GROUP_IMAGE_X/Y/Z: the minimum image on that axis only, the others as
+ * they are (see psys__pair_group_forces for when that is exact). */
+#define GROUP_IMAGES(mode, k) ((mode) == GROUP_IMAGE || (mode) == GROUP_IMAGE_X + (k))
 
 /* One group's inputs: the positions by component (X0, X1, X2) and as
  * records (Q), its interleaved lists and its rows' list lengths. */
@@ -154,10 +157,12 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
         __m256d e2 = c->zero;
         if (d == 3)
             e2 = _mm256_sub_pd(xi2, _mm256_permute2f128_pd(u0, u2, 0x31));
-        if (mode == GROUP_IMAGE) {
-            e0 = group_delta(c, 0, e0, &far);
-            e1 = group_delta(c, 1, e1, &far);
-            if (d == 3)
+        if (mode >= GROUP_IMAGE) {
+            if (GROUP_IMAGES(mode, 0))
+                e0 = group_delta(c, 0, e0, &far);
+            if (GROUP_IMAGES(mode, 1))
+                e1 = group_delta(c, 1, e1, &far);
+            if (d == 3 && GROUP_IMAGES(mode, 2))
                 e2 = group_delta(c, 2, e2, &far);
         } else if (mode == GROUP_CHECK) {
             far = _mm256_or_pd(far, _mm256_cmp_pd(_mm256_andnot_pd(c->sign, e0), c->hl[0], _CMP_GT_OQ));
@@ -190,10 +195,13 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
 
 /* FN (group_rows or group8_rows) with the law, dimension and mode as
  * constants: one inlined copy of the loop for each. */
-#define GROUP_MODES(FN, LAW, D)                                   \
-    return mode == GROUP_PLAIN   ? FN(c, LAW, D, GROUP_PLAIN, in, s) \
-           : mode == GROUP_CHECK ? FN(c, LAW, D, GROUP_CHECK, in, s) \
-                                 : FN(c, LAW, D, GROUP_IMAGE, in, s);
+#define GROUP_MODES(FN, LAW, D)                                       \
+    return mode == GROUP_PLAIN     ? FN(c, LAW, D, GROUP_PLAIN, in, s)   \
+           : mode == GROUP_CHECK   ? FN(c, LAW, D, GROUP_CHECK, in, s)   \
+           : mode == GROUP_IMAGE_X ? FN(c, LAW, D, GROUP_IMAGE_X, in, s) \
+           : mode == GROUP_IMAGE_Y ? FN(c, LAW, D, GROUP_IMAGE_Y, in, s) \
+           : mode == GROUP_IMAGE_Z ? FN(c, LAW, D, GROUP_IMAGE_Z, in, s) \
+                                   : FN(c, LAW, D, GROUP_IMAGE, in, s);
 #define GROUP_DISPATCH(FN)                                  \
     if (law == PSYS_PAIR_LENNARD_JONES) {                   \
         if (d == 3) {                                       \
@@ -212,21 +220,25 @@ AVX2 static bool group_rows_as(const group_consts *c, int law, int d, int mode, 
     GROUP_DISPATCH(group_rows)
 }
 
-/* Whether rows i0..i0+width-1 lie at least the list radius plus twice the
- * skin inside every periodic face: then their partners normally need no
- * image (the group loops check it, unless every position lies within half
- * a skin of the box: see psys__pair_group_forces). */
-static inline bool group_interior(const group_consts *c, int d, const double *X0, const double *X1,
+/* The periodic axes on which some of rows i0..i0+width-1 lies less than
+ * the list radius plus twice the skin inside a face (bit k for axis k; a
+ * NaN counts as near on every axis). On the other axes their partners
+ * normally need no image (the group loops check it, unless every position
+ * lies within half a skin of the box: see psys__pair_group_forces). */
+static inline unsigned group_near(const group_consts *c, int d, const double *X0, const double *X1,
                                   const double *X2, size_t i0, int width)
 {
     const double *X[3] = {X0, X1, X2};
+    unsigned near = 0;
     for (int k = 0; k < d; k++)
         for (int l = 0; l < width; l++) {
             const double v = X[k][i0 + (size_t)l];
-            if (!(v >= c->inlo[k] && v <= c->inhi[k]))
-                return false;
+            if (!(v >= c->inlo[k] && v <= c->inhi[k])) {
+                near |= 1u << k;
+                break;
+            }
         }
-    return true;
+    return near;
 }
 
 AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group_consts *c)
@@ -327,10 +339,12 @@ AVX512 __attribute__((always_inline)) static inline void group8_entry(const grou
     __m512d e2 = _mm512_setzero_pd();
     if (d == 3)
         e2 = _mm512_sub_pd(xi[2], _mm512_shuffle_f64x2(u0, u2, 0xdd));
-    if (mode == GROUP_IMAGE) {
-        e0 = group8_delta(c, 0, e0, far);
-        e1 = group8_delta(c, 1, e1, far);
-        if (d == 3)
+    if (mode >= GROUP_IMAGE) {
+        if (GROUP_IMAGES(mode, 0))
+            e0 = group8_delta(c, 0, e0, far);
+        if (GROUP_IMAGES(mode, 1))
+            e1 = group8_delta(c, 1, e1, far);
+        if (d == 3 && GROUP_IMAGES(mode, 2))
             e2 = group8_delta(c, 2, e2, far);
     } else if (mode == GROUP_CHECK) {
         *far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e0), c->hl[0], _CMP_GT_OQ);
@@ -414,10 +428,15 @@ static void group_chunk(const pair_force *p, const pair_image *m, const group_ct
         if (!any)
             continue;
         /* groups away from the periodic faces first without the image: only
-         * a flagged group pays for it */
-        int mode = !img                                                 ? GROUP_PLAIN
-                   : group_interior(&x->c4, d, X0, X1, X2, i0, width) ? (in_box ? GROUP_PLAIN : GROUP_CHECK)
-                                                                       : GROUP_IMAGE;
+         * a flagged group pays for it; with every position in the box, a
+         * group near the faces of one axis takes the image on that axis only */
+        int mode = GROUP_PLAIN;
+        if (img) {
+            const unsigned near = group_near(&x->c4, d, X0, X1, X2, i0, width);
+            mode = near == 0                       ? (in_box ? GROUP_PLAIN : GROUP_CHECK)
+                   : in_box && (near & (near - 1)) == 0 ? GROUP_IMAGE_X + __builtin_ctz(near)
+                                                        : GROUP_IMAGE;
+        }
         const group_in in = {X0, X1, X2, g->xq, g->gl + g->gl_start[b], g->nb_num + i0,
                              (uint32_t)((g->gl_start[b + 1] - g->gl_start[b]) / (size_t)width), i0};
         double s[3][GROUP_MAX];
@@ -520,10 +539,12 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     const bool three = p->dim == 3;
     double *Q = g->xq;
     /* the positions' bounds: if every one lies within half a skin of the
-     * box, a listed partner of an interior row (group_interior) is at less
-     * than the list radius plus the skin (the rebuild rule), so its raw
-     * difference is its minimum image and less than half a box: the check
-     * of GROUP_CHECK cannot fire and is skipped (GROUP_PLAIN, the same bits) */
+     * box, a listed partner of a row at least the list radius plus twice
+     * the skin inside the faces of axis k (group_near) is at less than the
+     * list radius plus the skin (the rebuild rule), so on axis k its raw
+     * difference is its minimum image and less than half a box: there the
+     * check of GROUP_CHECK cannot fire and the image changes nothing, so
+     * both are skipped (GROUP_PLAIN, GROUP_IMAGE_X/Y/Z: the same bits) */
     double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
     (void)nt;
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN) \

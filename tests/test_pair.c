@@ -527,6 +527,65 @@ static void grid_equals_direct_dense(void)
     compare_grid_direct_n(3, len, 6000, 1.4, 1, 1);
 }
 
+/* 10³ particles on a jittered lattice filling a box periodic on every axis
+ * (spacing 0.2, box 2, every position within half a skin of it): the
+ * groups of eight consecutive rows lie along x, so many are near the faces
+ * of x only and take the minimum image on that axis alone (pair_group.c),
+ * others on all axes. The same forces and energy as direct, before and
+ * after small moves. */
+static psys_system *lattice_with_pair(int law, psys_pair_method method)
+{
+    urand_seed(7);
+    psys_system *sys = jittered_lattice(3, 1000, 0.2, 0.02, false);
+    double lo[3] = {0, 0, 0}, hi[3] = {2, 2, 2};
+    bool per[3] = {true, true, true};
+    CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_OK);
+    psys_pair_def def = psys_pair_def_default();
+    def.law = (psys_pair_law)law;
+    def.sigma = 0.1;
+    def.epsilon = 0.01;
+    def.cutoff = 0.3;
+    def.radius = 0.25;
+    def.k = 2.3;
+    def.method = method;
+    def.skin = 0.05;
+    add_pair(sys, &def);
+    return sys;
+}
+
+static void grid_equals_direct_lattice(void)
+{
+    const size_t n = 1000;
+    for (int law = PSYS_PAIR_LENNARD_JONES; law <= PSYS_PAIR_SOFT_REPULSION; law++) {
+        psys_system *a = lattice_with_pair(law, PSYS_PAIR_GRID), *b = lattice_with_pair(law, PSYS_PAIR_DIRECT);
+        for (int move = 0; move < 3; move++) {
+            double *fa = forces_of(a), *fb = forces_of(b);
+            CHECK(memcmp(fa, fb, n * 3 * sizeof(double)) == 0);
+            double fmax_ = 0;
+            for (size_t i = 0; i < n * 3; i++)
+                fmax_ = fmax(fmax_, fabs(fa[i]));
+            CHECK(fmax_ > 0);
+            CHECK(psys_system_potential_energy(a) == psys_system_potential_energy(b));
+            free(fa);
+            free(fb);
+            for (size_t i = 0; i < n; i++) {
+                double x[3];
+                memcpy(x, psys_system_positions(a) + i * 3, sizeof x);
+                for (int k = 0; k < 3; k++)
+                    x[k] += urand(-0.002, 0.002);
+                CHECK(psys_system_set_particle(a, i, x, NULL) == PSYS_OK);
+                CHECK(psys_system_set_particle(b, i, x, NULL) == PSYS_OK);
+            }
+        }
+        psys_pair_stats st;
+        CHECK(psys_system_pair_stats(a, 0, &st) == PSYS_OK);
+        CHECK(st.pairs > 0 && st.fallbacks == 0);
+        CHECK(group_loops_run() ? st.grouped > 0 : st.grouped == 0);
+        psys_system_destroy(a);
+        psys_system_destroy(b);
+    }
+}
+
 /* Lists are rebuilt only when the two largest displacements since the last
  * build add up to the skin or more. */
 static void grid_rebuild_criterion(void)
@@ -1452,6 +1511,7 @@ static const check_case cases[] = {
     {"grid_equals_direct_periodic_2d", grid_equals_direct_periodic_2d},
     {"grid_equals_direct_periodic_3d", grid_equals_direct_periodic_3d},
     {"grid_equals_direct_dense", grid_equals_direct_dense},
+    {"grid_equals_direct_lattice", grid_equals_direct_lattice},
     {"grid_rebuild_criterion", grid_rebuild_criterion},
     {"grid_cache_matches_direct", grid_cache_matches_direct},
     {"minimum_image", minimum_image},
