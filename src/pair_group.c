@@ -299,22 +299,23 @@ AVX512 static inline __m512d group8_delta(const group8_consts *c, int k, __m512d
     return _mm512_mask_blend_pd(_mm512_cmp_pd_mask(a, c->hl[k], _CMP_GT_OQ), e, near);
 }
 
+/* Lennard-Jones: the division masked to the pairs inside the cutoff, the
+ * others getting 1/r² = 0 and so g = ±0: a ±0 term adds nothing to a sum
+ * that starts at +0 (no sum of finite terms is -0), so the same bits as
+ * the masked g of the row kernel, two instructions fewer per entry. */
 AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law, __m512d r2)
 {
     const __mmask8 in = _mm512_cmp_pd_mask(r2, c->rc2, _CMP_LT_OQ)
                         & _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ);
-    const __m512d safe = _mm512_mask_blend_pd(in, c->one, r2);
-    __m512d g;
     if (law == PSYS_PAIR_LENNARD_JONES) {
-        const __m512d ir2 = _mm512_div_pd(c->one, safe), s2 = _mm512_mul_pd(c->sig2, ir2);
+        const __m512d ir2 = _mm512_maskz_div_pd(in, c->one, r2), s2 = _mm512_mul_pd(c->sig2, ir2);
         const __m512d s6 = _mm512_mul_pd(_mm512_mul_pd(s2, s2), s2);
-        g = _mm512_mul_pd(_mm512_mul_pd(_mm512_mul_pd(c->lj24, s6), _mm512_sub_pd(_mm512_mul_pd(c->two, s6), c->one)),
-                          ir2);
-    } else {
-        const __m512d r = _mm512_sqrt_pd(safe), dr = _mm512_sub_pd(c->radius, r);
-        g = _mm512_div_pd(_mm512_mul_pd(c->kc, dr), r);
+        return _mm512_mul_pd(
+            _mm512_mul_pd(_mm512_mul_pd(c->lj24, s6), _mm512_sub_pd(_mm512_mul_pd(c->two, s6), c->one)), ir2);
     }
-    return _mm512_maskz_mov_pd(in, g);
+    const __m512d safe = _mm512_mask_blend_pd(in, c->one, r2);
+    const __m512d r = _mm512_sqrt_pd(safe), dr = _mm512_sub_pd(c->radius, r);
+    return _mm512_maskz_mov_pd(in, _mm512_div_pd(_mm512_mul_pd(c->kc, dr), r));
 }
 
 /* Entry k of a group's lists (j: its eight partners' record offsets) added
