@@ -274,6 +274,8 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
  * host measured, bench/README). Per lane the operations and the order of
  * group_rows, so the same bits. */
 #define GROUP8 8
+/* Lennard-Jones with σ = 1, as a law of its own for the eight-lane loop */
+#define GROUP8_LJ_UNIT (-1)
 #define AVX512 __attribute__((target("avx512f,avx512vl,avx512dq")))
 
 static bool group8_wanted(void)
@@ -283,6 +285,7 @@ static bool group8_wanted(void)
 }
 
 typedef struct group8_consts {
+    bool unit_sigma; /* σ² == 1 */
     union {
         struct {
             GROUP_CONST_FIELDS(__m512d);
@@ -307,11 +310,14 @@ AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law
 {
     const __mmask8 in = _mm512_cmp_pd_mask(r2, c->rc2, _CMP_LT_OQ)
                         & _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ);
-    if (law == PSYS_PAIR_LENNARD_JONES) {
-        const __m512d ir2 = _mm512_maskz_div_pd(in, c->one, r2), s2 = _mm512_mul_pd(c->sig2, ir2);
+    if (law == PSYS_PAIR_LENNARD_JONES || law == GROUP8_LJ_UNIT) {
+        /* σ² = 1 (reduced units): σ²·(1/r²) is 1/r² exactly; 2·s⁶ as s⁶ + s⁶,
+         * also exact, leaves the busier multiplier */
+        const __m512d ir2 = _mm512_maskz_div_pd(in, c->one, r2);
+        const __m512d s2 = law == GROUP8_LJ_UNIT ? ir2 : _mm512_mul_pd(c->sig2, ir2);
         const __m512d s6 = _mm512_mul_pd(_mm512_mul_pd(s2, s2), s2);
-        return _mm512_mul_pd(
-            _mm512_mul_pd(_mm512_mul_pd(c->lj24, s6), _mm512_sub_pd(_mm512_mul_pd(c->two, s6), c->one)), ir2);
+        return _mm512_mul_pd(_mm512_mul_pd(_mm512_mul_pd(c->lj24, s6), _mm512_sub_pd(_mm512_add_pd(s6, s6), c->one)),
+                             ir2);
     }
     const __m512d safe = _mm512_mask_blend_pd(in, c->one, r2);
     const __m512d r = _mm512_sqrt_pd(safe), dr = _mm512_sub_pd(c->radius, r);
@@ -395,6 +401,12 @@ AVX512 __attribute__((always_inline)) static inline bool group8_rows(const group
 AVX512 static bool group8_rows_as(const group8_consts *c, int law, int d, int mode, const group_in *in,
                                   double s[3][GROUP_MAX])
 {
+    if (law == PSYS_PAIR_LENNARD_JONES && c->unit_sigma) {
+        if (d == 3) {
+            GROUP_MODES(group8_rows, GROUP8_LJ_UNIT, 3)
+        }
+        GROUP_MODES(group8_rows, GROUP8_LJ_UNIT, 2)
+    }
     GROUP_DISPATCH(group8_rows)
 }
 
@@ -533,8 +545,10 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     const int width = group8_wanted() ? GROUP8 : GROUP;
     if (!g->gl_ok || g->gl_width != width)
         return false; /* no interleaved lists for this width (psys__pair_group_lists) */
-    if (width == GROUP8)
+    if (width == GROUP8) {
         group8_consts_of(&x.c4, &x.c8);
+        x.c8.unit_sigma = p->sig2 == 1.0;
+    }
     const size_t ng = n / (size_t)width, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
     const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
     const bool three = p->dim == 3;
