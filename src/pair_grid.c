@@ -1273,38 +1273,35 @@ bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
     const bool half = pair_grid_wants_half(p, n);
     if (g->built_n == n && g->half == half && box_equal(&g->box, &p->sys->box)) {
         const double *x = e->x, *xr = g->xref, skin = p->def.skin;
+        /* the two largest in one pass (m2 = m1 when two reach it); max and
+         * min are exact, so any split over threads gives the same pair */
         double m1 = 0, m2 = 0;
         int bad = 0, nt = pair_threads(p, 4.0 * (double)n);
         (void)nt;
-        PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1) reduction(max: m1) reduction(|: bad))
-        for (size_t i = 0; i < n; i++) {
-            double r2 = moved2(&m, x, xr, i, d);
-            if (!(r2 == r2))
-                bad |= 1;
-            else if (r2 > m1)
-                m1 = r2;
+        PSYS_OMP(omp parallel num_threads(nt) if (nt > 1))
+        {
+            double t1 = 0, t2 = 0;
+            int tb = 0;
+            PSYS_OMP(omp for schedule(static))
+            for (size_t i = 0; i < n; i++) {
+                const double r2 = moved2(&m, x, xr, i, d); /* NaN: flagged, and no effect below */
+                const double lo = r2 < t1 ? r2 : t1;
+                tb |= !(r2 == r2);
+                t2 = lo > t2 ? lo : t2;
+                t1 = r2 > t1 ? r2 : t1;
+            }
+            PSYS_OMP(omp critical(psys_grid_moved))
+            {
+                m2 = fmax(fmax(m2, t2), fmin(m1, t1));
+                m1 = fmax(m1, t1);
+                bad |= tb;
+            }
         }
-        const double lim = skin - 1e-12 * (skin + sqrt(p->rc2)), d1 = sqrt(m1);
+        const double lim = skin - 1e-12 * (skin + sqrt(p->rc2));
         if (!bad && m1 == 0)
             return true; /* nothing moved */
-        if (!bad && 2 * d1 < lim)
-            return true; /* even two such moves could not close the skin */
-        if (!bad && d1 < lim) {
-            /* the second largest: the largest below m1, or m1 itself if two reach it */
-            size_t at_max = 0;
-            PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1) reduction(max: m2) reduction(+: at_max))
-            for (size_t i = 0; i < n; i++) {
-                double r2 = moved2(&m, x, xr, i, d);
-                if (r2 == m1)
-                    at_max++;
-                else if (r2 > m2)
-                    m2 = r2;
-            }
-            if (at_max > 1)
-                m2 = m1;
-            if (d1 + sqrt(m2) < lim)
-                return true;
-        }
+        if (!bad && sqrt(m1) + sqrt(m2) < lim)
+            return true; /* no pair can have closed the skin */
     }
     return build(p, e, &m, half);
 }
