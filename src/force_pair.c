@@ -301,13 +301,14 @@ static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 
 /* Grid forces over full lists: four rows at a time where that runs
  * (pair_group.c), else through rows_fns, in parallel by chunks of rows. */
-static void grid_rows(pair_force *p, const pair_image *m, const double *w, size_t n,
+static void grid_rows(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                       const unsigned char *mark, double *out, int nt)
 {
-    if (psys__pair_group_forces(p, m, w, n, mark, out, nt)) {
+    if (psys__pair_group_forces(p, m, x, w, n, mark, out, nt)) {
         p->stats.grouped++;
         return;
     }
+    pair_soa_positions(p, x, n, nt);
     const rows_fn fn = rows_fns[p->law][p->dim == 3];
     const size_t nchunks = (n + ROWS_CHUNK - 1) / ROWS_CHUNK;
     (void)nt;
@@ -482,8 +483,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         /* MPI, replicated state (mpi.c): this rank's rows only, which change
          * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
-            pair_soa_positions(p, x, n, nt);
-            grid_rows(p, m, w, n, own, g->fcache, nt);
+            grid_rows(p, m, x, w, n, own, g->fcache, nt);
         } else {
             fn(p, m, x, w, n, own, g->fcache, nt);
         }
@@ -541,10 +541,8 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         for (size_t i = 0; i < n; i++)
             if (!own[i])
                 memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
-    if (compute && !g->half && pair_can_vectorise(p, w, n)) {
-        pair_soa_positions(p, x, n, nt);
-        grid_rows(p, m, w, n, rows, g->fcache, nt);
-    }
+    if (compute && !g->half && pair_can_vectorise(p, w, n))
+        grid_rows(p, m, x, w, n, rows, g->fcache, nt);
     else if (compute)
         fn(p, m, x, w, n, rows, g->fcache, nt);
     if (mark) {

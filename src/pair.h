@@ -479,11 +479,13 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 
 /* ---- pair_group.c ---- */
 /** Grid forces over the full lists of every row (or the marked ones) stored
- *  into out, four or eight rows at a time, from the positions in p->xsoa:
- *  the same bits as pair_row_forces. False if that path does not run here (a
- *  law it does not support, no AVX2, PSYS_GROUP_OFF set, no interleaved
- *  lists for its width); nothing was written. */
-bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *w, size_t n,
+ *  into out, four or eight rows at a time, from the positions x (particle
+ *  major; copied as records, and into p->xsoa only where some row may go
+ *  through pair_row_forces): the same bits as pair_row_forces. False if that
+ *  path does not run here (a law it does not support, no AVX2,
+ *  PSYS_GROUP_OFF set, no interleaved lists for its width); nothing was
+ *  written. */
+bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                              const unsigned char *rows, double *out, int nt);
 /** After a build of full lists: the interleaved copy psys__pair_group_forces
  *  reads (pair_grid.gl), where that path runs. False if storage could not grow. */

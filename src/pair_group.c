@@ -118,10 +118,10 @@ enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE, GROUP_IMAGE_X, GROUP_IMAGE_Y, GROU
  * they are (see psys__pair_group_forces for when that is exact). */
 #define GROUP_IMAGES(mode, k) ((mode) == GROUP_IMAGE || (mode) == GROUP_IMAGE_X + (k))
 
-/* One group's inputs: the positions by component (X0, X1, X2) and as
- * records (Q), its interleaved lists and its rows' list lengths. */
+/* One group's inputs: the positions as records (Q), its interleaved lists
+ * and its rows' list lengths. */
 typedef struct group_in {
-    const double *X0, *X1, *X2, *Q;
+    const double *Q;
     const uint32_t *il;  /* entry k of row i0 + l at il[k·width + l], as 4·j (Q + il[.] is j's record) */
     const uint32_t *num; /* the rows' list lengths */
     uint32_t len;        /* the longest */
@@ -136,9 +136,14 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
                                                                   double s[3][GROUP_MAX])
 {
     const size_t i0 = in->i0;
-    const double *Q = in->Q;
-    const __m256d xi0 = _mm256_loadu_pd(in->X0 + i0), xi1 = _mm256_loadu_pd(in->X1 + i0);
-    const __m256d xi2 = d == 3 ? _mm256_loadu_pd(in->X2 + i0) : c->zero;
+    const double *Q = in->Q, *R = Q + 4 * i0;
+    /* the rows' own records, transposed */
+    const __m256d r0 = _mm256_load_pd(R), r1 = _mm256_load_pd(R + 4), r2_ = _mm256_load_pd(R + 8);
+    const __m256d r3 = _mm256_load_pd(R + 12);
+    const __m256d v0 = _mm256_unpacklo_pd(r0, r1), v1 = _mm256_unpackhi_pd(r0, r1);
+    const __m256d v2 = _mm256_unpacklo_pd(r2_, r3), v3 = _mm256_unpackhi_pd(r2_, r3);
+    const __m256d xi0 = _mm256_permute2f128_pd(v0, v2, 0x20), xi1 = _mm256_permute2f128_pd(v1, v3, 0x20);
+    const __m256d xi2 = d == 3 ? _mm256_permute2f128_pd(v0, v2, 0x31) : c->zero;
     __m256d a0 = c->zero, a1 = c->zero, a2 = c->zero, far = c->zero;
     const uint32_t *n = in->num, len = in->len;
     const uint32_t lo01 = n[0] < n[1] ? n[0] : n[1], lo23 = n[2] < n[3] ? n[2] : n[3];
@@ -225,14 +230,12 @@ AVX2 static bool group_rows_as(const group_consts *c, int law, int d, int mode, 
  * NaN counts as near on every axis). On the other axes their partners
  * normally need no image (the group loops check it, unless every position
  * lies within half a skin of the box: see psys__pair_group_forces). */
-static inline unsigned group_near(const group_consts *c, int d, const double *X0, const double *X1,
-                                  const double *X2, size_t i0, int width)
+static inline unsigned group_near(const group_consts *c, int d, const double *Q, size_t i0, int width)
 {
-    const double *X[3] = {X0, X1, X2};
     unsigned near = 0;
     for (int k = 0; k < d; k++)
         for (int l = 0; l < width; l++) {
-            const double v = X[k][i0 + (size_t)l];
+            const double v = Q[4 * (i0 + (size_t)l) + (size_t)k];
             if (!(v >= c->inlo[k] && v <= c->inhi[k])) {
                 near |= 1u << k;
                 break;
@@ -324,6 +327,23 @@ AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law
     return _mm512_maskz_mov_pd(in, _mm512_div_pd(_mm512_mul_pd(c->kc, dr), r));
 }
 
+/* The eight records (x, y, z, 0) at Q + j[l], transposed into v[0..2]: q0
+ * holds records 0 and 2, q1 1 and 3, q2 4 and 6, q3 5 and 7, so that the
+ * 128-bit lanes picked below come out in order. */
+AVX512 __attribute__((always_inline)) static inline void group8_records(const double *Q, const uint32_t *j,
+                                                                       const int d, __m512d v[3])
+{
+    const __m512d q0 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[0])), _mm256_load_pd(Q + j[2]), 1);
+    const __m512d q1 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[1])), _mm256_load_pd(Q + j[3]), 1);
+    const __m512d q2 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[4])), _mm256_load_pd(Q + j[6]), 1);
+    const __m512d q3 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[5])), _mm256_load_pd(Q + j[7]), 1);
+    const __m512d u0 = _mm512_unpacklo_pd(q0, q1), u1 = _mm512_unpackhi_pd(q0, q1);
+    const __m512d u2 = _mm512_unpacklo_pd(q2, q3), u3 = _mm512_unpackhi_pd(q2, q3);
+    v[0] = _mm512_shuffle_f64x2(u0, u2, 0x88);
+    v[1] = _mm512_shuffle_f64x2(u1, u3, 0x88);
+    v[2] = d == 3 ? _mm512_shuffle_f64x2(u0, u2, 0xdd) : _mm512_setzero_pd();
+}
+
 /* Entry k of a group's lists (j: its eight partners' record offsets) added
  * into a; lanes outside live (lists that have ended) add +0. */
 AVX512 __attribute__((always_inline)) static inline void group8_entry(const group8_consts *c, const int law,
@@ -332,20 +352,13 @@ AVX512 __attribute__((always_inline)) static inline void group8_entry(const grou
                                                                      const __mmask8 live, __m512d a[3],
                                                                      __mmask8 *far)
 {
-    /* the eight partners' records (x, y, z, 0), transposed: q0 holds
-     * partners 0 and 2, q1 1 and 3, q2 4 and 6, q3 5 and 7, so that the
-     * 128-bit lanes picked below come out in partner order */
-    const __m512d q0 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[0])), _mm256_load_pd(Q + j[2]), 1);
-    const __m512d q1 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[1])), _mm256_load_pd(Q + j[3]), 1);
-    const __m512d q2 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[4])), _mm256_load_pd(Q + j[6]), 1);
-    const __m512d q3 = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(Q + j[5])), _mm256_load_pd(Q + j[7]), 1);
-    const __m512d u0 = _mm512_unpacklo_pd(q0, q1), u1 = _mm512_unpackhi_pd(q0, q1);
-    const __m512d u2 = _mm512_unpacklo_pd(q2, q3), u3 = _mm512_unpackhi_pd(q2, q3);
-    __m512d e0 = _mm512_sub_pd(xi[0], _mm512_shuffle_f64x2(u0, u2, 0x88));
-    __m512d e1 = _mm512_sub_pd(xi[1], _mm512_shuffle_f64x2(u1, u3, 0x88));
+    __m512d q[3];
+    group8_records(Q, j, d, q);
+    __m512d e0 = _mm512_sub_pd(xi[0], q[0]);
+    __m512d e1 = _mm512_sub_pd(xi[1], q[1]);
     __m512d e2 = _mm512_setzero_pd();
     if (d == 3)
-        e2 = _mm512_sub_pd(xi[2], _mm512_shuffle_f64x2(u0, u2, 0xdd));
+        e2 = _mm512_sub_pd(xi[2], q[2]);
     if (mode >= GROUP_IMAGE) {
         if (GROUP_IMAGES(mode, 0))
             e0 = group8_delta(c, 0, e0, far);
@@ -377,8 +390,13 @@ AVX512 __attribute__((always_inline)) static inline bool group8_rows(const group
                                                                     double s[3][GROUP_MAX])
 {
     const size_t i0 = in->i0;
-    const __m512d xi[3] = {_mm512_loadu_pd(in->X0 + i0), _mm512_loadu_pd(in->X1 + i0),
-                           d == 3 ? _mm512_loadu_pd(in->X2 + i0) : _mm512_setzero_pd()};
+    __m512d xi[3];
+    {
+        uint32_t own[GROUP8];
+        for (int l = 0; l < GROUP8; l++)
+            own[l] = (uint32_t)(4 * (i0 + (size_t)l));
+        group8_records(in->Q, own, d, xi);
+    }
     __m512d a[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
     __mmask8 far = 0;
     const uint32_t *n = in->num, len = in->len;
@@ -431,7 +449,7 @@ static void group_chunk(const pair_force *p, const pair_image *m, const group_ct
 {
     const pair_grid *g = &p->grid;
     const int d = p->dim, law = p->law;
-    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
+    const double *Q = g->xq;
     const bool img = m->on;
     for (size_t b = b0; b < b1; b++) {
         const size_t i0 = b * (size_t)width;
@@ -445,12 +463,12 @@ static void group_chunk(const pair_force *p, const pair_image *m, const group_ct
          * group near the faces of one axis takes the image on that axis only */
         int mode = GROUP_PLAIN;
         if (img) {
-            const unsigned near = group_near(&x->c4, d, X0, X1, X2, i0, width);
+            const unsigned near = group_near(&x->c4, d, Q, i0, width);
             mode = near == 0                       ? (in_box ? GROUP_PLAIN : GROUP_CHECK)
                    : in_box && (near & (near - 1)) == 0 ? GROUP_IMAGE_X + __builtin_ctz(near)
                                                         : GROUP_IMAGE;
         }
-        const group_in in = {X0, X1, X2, g->xq, g->gl + g->gl_start[b], g->nb_num + i0,
+        const group_in in = {Q, g->gl + g->gl_start[b], g->nb_num + i0,
                              (uint32_t)((g->gl_start[b + 1] - g->gl_start[b]) / (size_t)width), i0};
         double s[3][GROUP_MAX];
         bool far;
@@ -532,7 +550,7 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
     return true;
 }
 
-bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *w, size_t n,
+bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x_in, const double *w, size_t n,
                              const unsigned char *rows, double *out, int nt)
 {
 #if defined(PSYS_GROUP_AVX2)
@@ -550,8 +568,8 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
         x.c8.unit_sigma = p->sig2 == 1.0;
     }
     const size_t ng = n / (size_t)width, nchunks = (ng + GROUP_CHUNK - 1) / GROUP_CHUNK;
-    const double *X0 = p->xsoa, *X1 = X0 + p->cap, *X2 = X1 + p->cap;
     const bool three = p->dim == 3;
+    const size_t dd = three ? 3 : 2;
     double *Q = g->xq;
     /* the positions' bounds: if every one lies within half a skin of the
      * box, a listed partner of a row at least the list radius plus twice
@@ -565,7 +583,7 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN) \
              reduction(min: lo0, lo1, lo2) reduction(max: hi0, hi1, hi2))
     for (size_t i = 0; i < n; i++) {
-        const double a = X0[i], b = X1[i], z = three ? X2[i] : 0.0;
+        const double a = x_in[dd * i], b = x_in[dd * i + 1], z = three ? x_in[dd * i + 2] : 0.0;
         Q[4 * i] = a;
         Q[4 * i + 1] = b;
         Q[4 * i + 2] = z;
@@ -581,10 +599,18 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     {
         const psys__box *box = &p->sys->box;
         const double lo[3] = {lo0, lo1, lo2}, hi[3] = {hi0, hi1, hi2}, slack = 0.5 * p->def.skin;
+        /* (and a skin under half the box, so no difference on an axis
+         * reaches the 1.5 boxes that GROUP_IMAGE flags) */
         for (int k = 0; k < p->dim; k++)
             if (m->per[k])
-                in_box = in_box && lo[k] >= box->lo[k] - slack && hi[k] <= box->hi[k] + slack;
+                in_box = in_box && lo[k] >= box->lo[k] - slack && hi[k] <= box->hi[k] + slack
+                         && 2 * slack < 0.5 * box->len[k];
     }
+    /* the component-major copy for the rows that may go through the row
+     * loop: the last n mod width, and any group flagged (only possible when
+     * not every position lies in the box) */
+    if ((m->on && !in_box) || n % (size_t)width != 0)
+        pair_soa_positions(p, x_in, n, nt);
     PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))
     for (size_t q = 0; q < nchunks; q++) {
         const size_t b0 = q * GROUP_CHUNK, b1 = b0 + GROUP_CHUNK < ng ? b0 + GROUP_CHUNK : ng;
