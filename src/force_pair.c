@@ -456,6 +456,9 @@ static inline bool moved_since(const double *x, const double *xc, size_t i, int 
     return false;
 }
 
+/* At most this many threads look for the moved particles of a cached evaluation. */
+#define PAIR_MOVED_THREADS 64
+
 /* Grid method. Forces go through a cache: a particle's force depends only
  * on its position and those of its partners, so when the lists have not
  * been rebuilt since the last evaluation and only a few particles moved
@@ -497,9 +500,29 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     size_t nc = 0;
     bool compute = true;
     if (cacheable && g->cache_ok && g->cache_n == n && g->cache_rebuilds == p->stats.rebuilds) {
-        for (size_t i = 0; i < n && nc <= n / 8; i++)
-            if (moved_since(x, g->xcache, i, d))
-                g->changed[nc++] = (uint32_t)i;
+        /* the moved particles in index order: each thread lists those of
+         * its static range at the range's start, then the lists are joined */
+        const int ntm = pair_threads(p, 2.0 * (double)nd);
+        size_t at[PAIR_MOVED_THREADS + 1] = {0}, cnt[PAIR_MOVED_THREADS] = {0};
+        const int nm = ntm < PAIR_MOVED_THREADS ? ntm : PAIR_MOVED_THREADS;
+        for (int t = 0; t <= nm; t++)
+            at[t] = n * (size_t)t / (size_t)nm;
+        PSYS_OMP(omp parallel for schedule(static, 1) num_threads(nm) if (nm > 1))
+        for (int t = 0; t < nm; t++) {
+            size_t c = 0;
+            for (size_t i = at[t]; i < at[t + 1] && c <= n / 8; i++)
+                if (moved_since(x, g->xcache, i, d))
+                    g->changed[at[t] + c++] = (uint32_t)i;
+            cnt[t] = c;
+        }
+        for (int t = 0; t < nm; t++) {
+            if (nc + cnt[t] > n / 8) { /* too many for a partial evaluation */
+                nc = n / 8 + 1;
+                break;
+            }
+            memmove(g->changed + nc, g->changed + at[t], cnt[t] * sizeof(uint32_t));
+            nc += cnt[t];
+        }
         if (nc == 0) {
             compute = false;
         } else if (nc <= n / 8) {
