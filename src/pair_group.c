@@ -113,10 +113,11 @@ AVX2 static inline __m256d group_kernel(const group_consts *c, const int law, __
  * flagging any |x_i - x_j| above half a box on a periodic axis (then the
  * minimum image would have changed something); or through the one-box
  * minimum image, flagging |x_i - x_j| of 1.5 boxes or more. */
-enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE, GROUP_IMAGE_X, GROUP_IMAGE_Y, GROUP_IMAGE_Z };
-/* GROUP_IMAGE_X/Y/Z: the minimum image on that axis only, the others as
- * they are (see psys__pair_group_forces for when that is exact). */
-#define GROUP_IMAGES(mode, k) ((mode) == GROUP_IMAGE || (mode) == GROUP_IMAGE_X + (k))
+enum { GROUP_PLAIN, GROUP_CHECK, GROUP_IMAGE, GROUP_AXES };
+/* GROUP_AXES + mask (mask 1 to 6): the minimum image on the axes of mask
+ * only, the others as they are (see psys__pair_group_forces for when that
+ * is exact); mask 7 is GROUP_IMAGE. */
+#define GROUP_IMAGES(mode, k) ((mode) == GROUP_IMAGE || ((mode) >= GROUP_AXES && (((mode) - GROUP_AXES) >> (k)) & 1))
 
 /* One group's inputs: the positions as records (Q), its interleaved lists
  * and its rows' list lengths. */
@@ -203,9 +204,12 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
 #define GROUP_MODES(FN, LAW, D)                                       \
     return mode == GROUP_PLAIN     ? FN(c, LAW, D, GROUP_PLAIN, in, s)   \
            : mode == GROUP_CHECK   ? FN(c, LAW, D, GROUP_CHECK, in, s)   \
-           : mode == GROUP_IMAGE_X ? FN(c, LAW, D, GROUP_IMAGE_X, in, s) \
-           : mode == GROUP_IMAGE_Y ? FN(c, LAW, D, GROUP_IMAGE_Y, in, s) \
-           : mode == GROUP_IMAGE_Z ? FN(c, LAW, D, GROUP_IMAGE_Z, in, s) \
+           : mode == GROUP_AXES + 1 ? FN(c, LAW, D, GROUP_AXES + 1, in, s) \
+           : mode == GROUP_AXES + 2 ? FN(c, LAW, D, GROUP_AXES + 2, in, s) \
+           : mode == GROUP_AXES + 3 ? FN(c, LAW, D, GROUP_AXES + 3, in, s) \
+           : mode == GROUP_AXES + 4 ? FN(c, LAW, D, GROUP_AXES + 4, in, s) \
+           : mode == GROUP_AXES + 5 ? FN(c, LAW, D, GROUP_AXES + 5, in, s) \
+           : mode == GROUP_AXES + 6 ? FN(c, LAW, D, GROUP_AXES + 6, in, s) \
                                    : FN(c, LAW, D, GROUP_IMAGE, in, s);
 #define GROUP_DISPATCH(FN)                                  \
     if (law == PSYS_PAIR_LENNARD_JONES) {                   \
@@ -460,12 +464,12 @@ static void group_chunk(const pair_force *p, const pair_image *m, const group_ct
             continue;
         /* groups away from the periodic faces first without the image: only
          * a flagged group pays for it; with every position in the box, a
-         * group near the faces of one axis takes the image on that axis only */
+         * group takes the image only on the axes whose faces it is near */
         int mode = GROUP_PLAIN;
         if (img) {
             const unsigned near = group_near(&x->c4, d, Q, i0, width);
             mode = near == 0                       ? (in_box ? GROUP_PLAIN : GROUP_CHECK)
-                   : in_box && (near & (near - 1)) == 0 ? GROUP_IMAGE_X + __builtin_ctz(near)
+                   : in_box && near != 7 ? GROUP_AXES + (int)near
                                                         : GROUP_IMAGE;
         }
         const group_in in = {Q, g->gl + g->gl_start[b], g->nb_num + i0,
@@ -577,7 +581,7 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
      * list radius plus the skin (the rebuild rule), so on axis k its raw
      * difference is its minimum image and less than half a box: there the
      * check of GROUP_CHECK cannot fire and the image changes nothing, so
-     * both are skipped (GROUP_PLAIN, GROUP_IMAGE_X/Y/Z: the same bits) */
+     * both are skipped (GROUP_PLAIN, GROUP_AXES: the same bits) */
     double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
     (void)nt;
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN) \
