@@ -513,10 +513,11 @@ FILL_FN(fill_3h, 3, true)
 
 #ifdef PSYS_SCAN_AVX512
 /* Full lists cell by cell (AVX-512, no periodic axis of fewer than five
- * cells): the candidates of each run of cells are loaded once for all the
- * particles of the home cell (CELL_HOME at a time) instead of once per
- * particle, each particle's partners collected in a scratch list, sorted and
- * written to its slot, nb[i·room ...]. Cells are pruned by their distance
+ * cells): the candidates around each home cell are loaded once for all its
+ * particles (fill_line's sliding window; run by run, CELL_HOME particles
+ * at a time, in fill_cell where the window does not fit) instead of once
+ * per particle, each particle's partners collected in a scratch list,
+ * sorted and written to its slot, nb[i·room ...]. Cells are pruned by their distance
  * to the home cell, which keeps every cell a particle's own pruning
  * (visit_d) keeps; the test per pair is scan_avx512's on the same numbers,
  * so the lists are the same. Returns the longest list (the caller grows
@@ -615,8 +616,9 @@ window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const doub
     return true;
 }
 
-/* fill_by_cells for home cell c: the longest of its lists, or SIZE_MAX if
- * some list passed CELL_LIST. */
+/* fill_by_cells for home cell c, run by run (where fill_line's window
+ * would not fit): the longest of its lists, or SIZE_MAX if some list passed
+ * CELL_LIST. */
 __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const stencil *sc, const pair_image *m,
                                                             size_t c, size_t room, double rl2, const int d)
 {
