@@ -616,6 +616,45 @@ window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const doub
     return true;
 }
 
+/* The neighbours of cell coordinate c on axis k, for offsets sc->off[k]:
+ * wrapped cell (-1 outside a free axis), image shift, squared gap. */
+static void cell_offsets(const pair_grid *g, const stencil *sc, const pair_image *m, int k, int c, int d, int wc[5],
+                         double img[5], double gap2[5])
+{
+    for (int a = 0; a < sc->n[k]; a++) {
+        const int o = sc->off[k][a], nk = g->ncell[k];
+        int v = c + o;
+        double sh = 0;
+        if (m->per[k]) {
+            if (v < 0) {
+                v += nk;
+                sh = -m->len[k];
+            } else if (v >= nk) {
+                v -= nk;
+                sh = m->len[k];
+            }
+        } else if (v < 0 || v >= nk) {
+            v = -1;
+        }
+        const double gap = o == 0 ? 0 : (double)(abs(o) - 1) * g->cell_size[k];
+        wc[a] = v;
+        img[a] = sh;
+        gap2[a] = k < d ? gap * gap : 0;
+    }
+}
+
+/* The end of the run of x cells from a0 on: cells next to each other in
+ * memory (wrapped indices consecutive), with the same image shift, none
+ * pruned (gap2 past lim with the other axes' squared gaps g). */
+static inline int run_end(const int wc[5], const double img[5], const double gap2[5], int n, int a0, double g,
+                          double lim)
+{
+    int e0 = a0 + 1;
+    while (e0 < n && wc[e0] == wc[e0 - 1] + 1 && img[e0] == img[a0] && !(g + gap2[e0] > lim))
+        e0++;
+    return e0;
+}
+
 /* fill_by_cells for home cell c, run by run (where fill_line's window
  * would not fit): the longest of its lists, or SIZE_MAX if some list passed
  * CELL_LIST. */
@@ -634,26 +673,7 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
     int wc[3][5];
     double img[3][5], gap2[3][5];
     for (int k = 0; k < 3; k++)
-        for (int a = 0; a < sc->n[k]; a++) {
-            const int o = sc->off[k][a], nk = g->ncell[k];
-            int v = cc[k] + o;
-            double sh = 0;
-            if (m->per[k]) {
-                if (v < 0) {
-                    v += nk;
-                    sh = -m->len[k];
-                } else if (v >= nk) {
-                    v -= nk;
-                    sh = m->len[k];
-                }
-            } else if (v < 0 || v >= nk) {
-                v = -1;
-            }
-            const double gap = o == 0 ? 0 : (double)(abs(o) - 1) * g->cell_size[k];
-            wc[k][a] = v;
-            img[k][a] = sh;
-            gap2[k][a] = k < d ? gap * gap : 0;
-        }
+        cell_offsets(g, sc, m, k, cc[k], d, wc[k], img[k], gap2[k]);
     for (uint32_t h0 = s0; h0 < s1; h0 += CELL_HOME) {
         const int nh = s1 - h0 < CELL_HOME ? (int)(s1 - h0) : CELL_HOME;
         size_t cnt[CELL_HOME];
@@ -676,10 +696,7 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
                         a0++;
                         continue;
                     }
-                    int e0 = a0 + 1;
-                    while (e0 < sc->n[0] && wc[0][e0] == wc[0][e0 - 1] + 1 && img[0][e0] == img[0][a0]
-                           && !(gyz + gap2[0][e0] > lim))
-                        e0++;
+                    const int e0 = run_end(wc[0], img[0], gap2[0], sc->n[0], a0, gyz, lim);
                     const uint32_t t0 = g->cell_start[row + (size_t)xx];
                     const uint32_t t1 = g->cell_start[row + (size_t)wc[0][e0 - 1] + 1];
                     /* the home particles' build coordinates less the run's image shift */
@@ -736,33 +753,6 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
     return longest;
 }
 
-/* The neighbours of cell coordinate c on axis k, for offsets sc->off[k]:
- * wrapped cell (-1 outside a free axis), image shift, squared gap. */
-static void cell_offsets(const pair_grid *g, const stencil *sc, const pair_image *m, int k, int c, int d, int wc[5],
-                         double img[5], double gap2[5])
-{
-    for (int a = 0; a < sc->n[k]; a++) {
-        const int o = sc->off[k][a], nk = g->ncell[k];
-        int v = c + o;
-        double sh = 0;
-        if (m->per[k]) {
-            if (v < 0) {
-                v += nk;
-                sh = -m->len[k];
-            } else if (v >= nk) {
-                v -= nk;
-                sh = m->len[k];
-            }
-        } else if (v < 0 || v >= nk) {
-            v = -1;
-        }
-        const double gap = o == 0 ? 0 : (double)(abs(o) - 1) * g->cell_size[k];
-        wc[a] = v;
-        img[a] = sh;
-        gap2[a] = k < d ? gap * gap : 0;
-    }
-}
-
 /* fill_by_cells for the line of home cells (cx, 0..ny-1, cz), sliding a
  * window of slabs along y (the stencil's five y offsets; cells pruned by
  * their gap in x and z only, a superset of what each home cell keeps): the
@@ -813,10 +803,7 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
                         a0++;
                         continue;
                     }
-                    int e0 = a0 + 1;
-                    while (e0 < sc->n[0] && wc0[e0] == wc0[e0 - 1] + 1 && img0[e0] == img0[a0]
-                           && !(gap2z[a2] + gap0[e0] > lim))
-                        e0++;
+                    const int e0 = run_end(wc0, img0, gap0, sc->n[0], a0, gap2z[a2], lim);
                     const double sh[3] = {img0[a0], sy, img2[a2]};
                     any |= sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
                     broken = !window_add(g, w, g->cell_start[row + (size_t)xx],
