@@ -347,6 +347,27 @@ typedef struct stencil {
     bool prune[3];
 } stencil;
 
+/* Cell index v on axis k (possibly one box out) wrapped into the grid on a
+ * periodic axis, with *sh the shift at which that cell's image lies (its
+ * particles' coordinates + *sh); -1 outside a free axis. */
+static inline int wrap_cell(const pair_grid *g, const pair_image *m, int k, int v, double *sh)
+{
+    const int nk = g->ncell[k];
+    *sh = 0;
+    if (m->per[k]) {
+        if (v < 0) {
+            *sh = -m->len[k];
+            return v + nk;
+        }
+        if (v >= nk) {
+            *sh = m->len[k];
+            return v - nk;
+        }
+        return v;
+    }
+    return v < 0 || v >= nk ? -1 : v;
+}
+
 /* Coordinate k of particle i as the builds see it: wrapped into the box on
  * periodic axes (lo + t), the position itself on free axes. */
 static inline double build_coord(const pair_grid *g, const pair_image *m, int k, double x)
@@ -377,28 +398,12 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
     int wc[3][5]; /* the neighbouring cells' coordinates, wrapped; -1: outside a free axis */
     bool slow[3] = {false, false, false}, any_slow = false;
     for (int k = 0; k < 3; k++) {
-        const int nk = g->ncell[k];
         slow[k] = k < d && m->per[k] && !sc->prune[k];
         any_slow |= slow[k];
         for (int a = 0; a < sc->n[k]; a++) {
-            int v = cc[k] + sc->off[k][a];
-            double sh = 0; /* the cell's image lies at its particles' coordinates + sh */
-            if (m->per[k] && !slow[k]) {
-                if (v < 0) {
-                    v += nk;
-                    sh = -m->len[k];
-                } else if (v >= nk) {
-                    v -= nk;
-                    sh = m->len[k];
-                }
-            } else if (m->per[k]) {
-                if (v >= nk)
-                    v -= nk;
-            } else if (v < 0 || v >= nk) {
-                v = -1;
-            }
-            wc[k][a] = v;
-            img[k][a] = sh;
+            double sh;
+            wc[k][a] = wrap_cell(g, m, k, cc[k] + sc->off[k][a], &sh);
+            img[k][a] = slow[k] ? 0 : sh; /* a slow axis: every candidate through the minimum image */
             ad2[k][a] = 0;
         }
     }
@@ -622,23 +627,9 @@ static void cell_offsets(const pair_grid *g, const stencil *sc, const pair_image
                          double img[5], double gap2[5])
 {
     for (int a = 0; a < sc->n[k]; a++) {
-        const int o = sc->off[k][a], nk = g->ncell[k];
-        int v = c + o;
-        double sh = 0;
-        if (m->per[k]) {
-            if (v < 0) {
-                v += nk;
-                sh = -m->len[k];
-            } else if (v >= nk) {
-                v -= nk;
-                sh = m->len[k];
-            }
-        } else if (v < 0 || v >= nk) {
-            v = -1;
-        }
+        const int o = sc->off[k][a];
         const double gap = o == 0 ? 0 : (double)(abs(o) - 1) * g->cell_size[k];
-        wc[a] = v;
-        img[a] = sh;
+        wc[a] = wrap_cell(g, m, k, c + o, &img[a]);
         gap2[a] = k < d ? gap * gap : 0;
     }
 }
@@ -778,20 +769,10 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
     for (int add = -2; add < ny + 2; add++) {
         if (!broken) {
             const size_t before = w->end - w->start; /* live entries before the slab */
-            int wy = add;
-            double sy = 0;
-            bool valid = true, any = false;
-            if (m->per[1]) {
-                if (wy >= ny) {
-                    wy -= ny;
-                    sy = m->len[1];
-                } else if (wy < 0) {
-                    wy += ny;
-                    sy = -m->len[1];
-                }
-            } else if (wy < 0 || wy >= ny) {
-                valid = false;
-            }
+            double sy;
+            const int wy = wrap_cell(g, m, 1, add, &sy);
+            const bool valid = wy >= 0;
+            bool any = false;
             for (int a2 = 0; a2 < nzo && valid && !broken; a2++) {
                 const int z = d == 3 ? wc2[a2] : 0;
                 if (gap2z[a2] > lim || z < 0)
