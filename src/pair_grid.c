@@ -540,9 +540,23 @@ FILL_FN(fill_3h, 3, true)
 #define WIN_CAP 2048
 typedef struct cand_win {
     double x[3][WIN_CAP + 16], s[3][WIN_CAP + 16];
+    float xf[3][WIN_CAP + 16]; /* single precision: the candidates' images x + s */
     uint32_t j[WIN_CAP + 16];
     size_t start, end;
 } cand_win;
+
+/* The single-precision window (window_list_f): each candidate stored as
+ * its image x_j + s rounded to float, tested against one threshold hi above
+ * the list radius that no pair within the radius can reach through the
+ * roundings (win_float_limit), so the lists hold every pair they must and
+ * at most a few more just outside the radius (which the kernels cut at the
+ * cutoff, as they cut the skin's pairs). Sixteen candidates per instruction
+ * instead of eight, half the bytes; used when that margin is small, i.e.
+ * coordinates are not too large against the radius. */
+typedef struct win_mode {
+    bool f32;
+    float hi;
+} win_mode;
 
 /* Home slot sl's list from the window's nu entries at x/s/j (each pointing
  * at the first live one), into out (CELL_LIST + 16 entries); returns its
@@ -585,13 +599,44 @@ window_list(const pair_grid *g, size_t sl, const double *const x[3], const doubl
     return cnt;
 }
 
+/* window_list on the single-precision window (win_mode): the images'
+ * squared distances in float, ((dx² + dy²) + dz²), below hi. */
+__attribute__((target("avx512f"), always_inline)) static inline size_t
+window_list_f(const pair_grid *g, size_t sl, const float *const x[3], const uint32_t *uj, size_t nu, float hi,
+              uint32_t *out, const int d)
+{
+    const size_t stride = g->cx_stride;
+    const __m512 X0 = _mm512_set1_ps((float)g->cell_x[sl]), X1 = _mm512_set1_ps((float)g->cell_x[stride + sl]);
+    const __m512 X2 = _mm512_set1_ps(d == 3 ? (float)g->cell_x[2 * stride + sl] : 0.0f);
+    const __m512 vlim = _mm512_set1_ps(hi);
+    const __m512i vi = _mm512_set1_epi32((int)g->cell_list[sl]);
+    size_t cnt = 0;
+    for (size_t t = 0; t < nu; t += 16) {
+        __m512 dx = _mm512_sub_ps(X0, _mm512_loadu_ps(x[0] + t));
+        __m512 r2 = _mm512_mul_ps(dx, dx);
+        dx = _mm512_sub_ps(X1, _mm512_loadu_ps(x[1] + t));
+        r2 = _mm512_add_ps(r2, _mm512_mul_ps(dx, dx));
+        if (d == 3) {
+            dx = _mm512_sub_ps(X2, _mm512_loadu_ps(x[2] + t));
+            r2 = _mm512_add_ps(r2, _mm512_mul_ps(dx, dx));
+        }
+        const __m512i j = _mm512_loadu_si512(uj + t);
+        const __mmask16 ok = _mm512_cmp_ps_mask(r2, vlim, _CMP_LT_OQ) & _mm512_cmpneq_epu32_mask(j, vi);
+        if (cnt <= CELL_LIST)
+            _mm512_storeu_si512(out + cnt, _mm512_maskz_compress_epi32(ok, j));
+        cnt += (size_t)__builtin_popcount((unsigned)ok);
+    }
+    return cnt;
+}
+
 /* Append candidates [t0, t1) of cell_x/cell_list with image shift sh[] to
  * the window, moving the live entries to the front when the end is reached;
  * false if they do not fit even then. Whole vectors are stored (the
  * padding past the end takes what spills): masked stores were a fifth of
  * the fill's time. */
 __attribute__((target("avx512f"), always_inline)) static inline bool
-window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const double sh[3], const int d)
+window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const double sh[3], const int d,
+           const bool f32)
 {
     const size_t len = t1 - t0;
     if (len > WIN_CAP - w->end) {
@@ -599,6 +644,10 @@ window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const doub
         if (len > WIN_CAP - live)
             return false;
         for (int k = 0; k < 3; k++) {
+            if (f32) {
+                memmove(w->xf[k], w->xf[k] + w->start, live * sizeof(float));
+                continue;
+            }
             memmove(w->x[k], w->x[k] + w->start, live * sizeof(double));
             memmove(w->s[k], w->s[k] + w->start, live * sizeof(double));
         }
@@ -610,8 +659,12 @@ window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const doub
     for (size_t q = 0; q < len; q += 8) {
         const __mmask8 live = len - q >= 8 ? (__mmask8)0xff : (__mmask8)((1u << (len - q)) - 1);
         for (int k = 0; k < d; k++) {
-            _mm512_storeu_pd(w->x[k] + at + q,
-                             _mm512_maskz_loadu_pd(live, g->cell_x + (size_t)k * g->cx_stride + t0 + q));
+            const __m512d c = _mm512_maskz_loadu_pd(live, g->cell_x + (size_t)k * g->cx_stride + t0 + q);
+            if (f32) {
+                _mm256_storeu_ps(w->xf[k] + at + q, _mm512_cvtpd_ps(_mm512_add_pd(c, _mm512_set1_pd(sh[k]))));
+                continue;
+            }
+            _mm512_storeu_pd(w->x[k] + at + q, c);
             _mm512_storeu_pd(w->s[k] + at + q, _mm512_set1_pd(sh[k]));
         }
         _mm256_storeu_si256((__m256i *)(w->j + at + q),
@@ -751,7 +804,7 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
  * would pass WIN_CAP, the rest of the line goes cell by cell (fill_cell). */
 __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const stencil *sc, const pair_image *m,
                                                             int cx, int cz, size_t room, double rl2, const int d,
-                                                            cand_win *w)
+                                                            cand_win *w, const win_mode wm)
 {
     const double lim = rl2 * (1 + 1e-6);
     const int nx = g->ncell[0], ny = g->ncell[1];
@@ -788,7 +841,7 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
                     const double sh[3] = {img0[a0], sy, img2[a2]};
                     any |= sh[0] != 0 || sh[1] != 0 || sh[2] != 0;
                     broken = !window_add(g, w, g->cell_start[row + (size_t)xx],
-                                         g->cell_start[row + (size_t)wc0[e0 - 1] + 1], sh, d);
+                                         g->cell_start[row + (size_t)wc0[e0 - 1] + 1], sh, d, wm.f32);
                     a0 = e0;
                 }
             }
@@ -816,14 +869,18 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
                 for (int k = 0; k < 3; k++) {
                     w->x[k][q] = NAN;
                     w->s[k][q] = 0;
+                    w->xf[k][q] = NAN;
                 }
                 w->j[q] = 0;
             }
             const double *const xs[3] = {w->x[0] + w->start, w->x[1] + w->start, w->x[2] + w->start};
             const double *const ss[3] = {w->s[0] + w->start, w->s[1] + w->start, w->s[2] + w->start};
             const uint32_t *js = w->j + w->start;
+            const float *const xf[3] = {w->xf[0] + w->start, w->xf[1] + w->start, w->xf[2] + w->start};
             for (uint32_t sl = s0; sl < s1; sl++) {
-                const size_t cnt = d == 3 ? (shifted ? window_list(g, sl, xs, ss, js, nu, rl2, out, 3, true)
+                const size_t cnt = wm.f32 ? (d == 3 ? window_list_f(g, sl, xf, js, nu, wm.hi, out, 3)
+                                                    : window_list_f(g, sl, xf, js, nu, wm.hi, out, 2))
+                                   : d == 3 ? (shifted ? window_list(g, sl, xs, ss, js, nu, rl2, out, 3, true)
                                                      : window_list(g, sl, xs, ss, js, nu, rl2, out, 3, false))
                                           : (shifted ? window_list(g, sl, xs, ss, js, nu, rl2, out, 2, true)
                                                      : window_list(g, sl, xs, ss, js, nu, rl2, out, 2, false));
@@ -843,10 +900,32 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
     return longest;
 }
 
+/* The single-precision window's threshold for list radius² rl2 when every
+ * build coordinate and image x + s is at most B in size (u = 2⁻²⁴): each of
+ * x_i and x_j + s is off by at most B·u as a float, their difference by
+ * |d_k|·u more, so |δ_k − d_k| ≤ E = (2B + rl)·u (with a margin) for
+ * |d_k| ≤ rl; then Σ δ_k² ≤ d² + 2√3·rl·E + 3E², and the three products and
+ * two sums add at most (1 + u)³. No float window where that margin passes a
+ * thousandth of rl2 (huge coordinates against the radius) or with
+ * PSYS_WINDOW_DOUBLE set (so the tests reach the double window). */
+static win_mode win_float_limit(double rl2, double B)
+{
+    win_mode wm = {false, 0};
+    const double u = 0x1p-24, rl = sqrt(rl2), E = (2 * B + rl) * u * 1.001;
+    const double hi = (rl2 + 3.5 * rl * E + 3 * E * E) * (1 + 4 * u);
+    if (!(hi - rl2 <= 1e-3 * rl2) || getenv("PSYS_WINDOW_DOUBLE"))
+        return wm;
+    wm.f32 = true;
+    wm.hi = nextafterf((float)hi, INFINITY);
+    return wm;
+}
+
 static size_t fill_by_cells(pair_force *p, const stencil *sc, const pair_image *m, size_t n, size_t room,
-                            double rl2, int nt, int d)
+                            double rl2, double scale, int nt, int d)
 {
     pair_grid *g = &p->grid;
+    /* build coordinates lie within scale of 0, their images within 2·scale */
+    const win_mode wm = win_float_limit(rl2, 2 * scale);
     const size_t nlines = (size_t)g->ncell[0] * (size_t)g->ncell[2];
     size_t longest = 0;
     if (nt < 1)
@@ -875,8 +954,8 @@ static size_t fill_by_cells(pair_force *p, const stencil *sc, const pair_image *
         PSYS_OMP(omp for schedule(dynamic, 2) reduction(max: longest))
         for (size_t L = 0; L < nlines; L++) {
             const int cx = (int)(L % (size_t)g->ncell[0]), cz = (int)(L / (size_t)g->ncell[0]);
-            const size_t l = d == 3 ? fill_line(g, sc, m, cx, cz, room, rl2, 3, w)
-                                    : fill_line(g, sc, m, cx, cz, room, rl2, 2, w);
+            const size_t l = d == 3 ? fill_line(g, sc, m, cx, cz, room, rl2, 3, w, wm)
+                                    : fill_line(g, sc, m, cx, cz, room, rl2, 2, w, wm);
             longest = l > longest ? l : longest; /* SIZE_MAX stays */
         }
     }
@@ -1159,7 +1238,7 @@ static bool build(pair_force *p, const psys_force_eval *e, const pair_image *m, 
         for (;;) {
             if (!(room <= SIZE_MAX / 2 / (n ? n : 1)) || !grow_lists(&g->nb, &g->nb_cap, n * room))
                 return false;
-            const size_t longest = fill_by_cells(p, &sc, m, n, room, rls2, ntf, d);
+            const size_t longest = fill_by_cells(p, &sc, m, n, room, rls2, scale, ntf, d);
             if (longest == SIZE_MAX) {
                 by_cells = false; /* a list too long for the scratch: the fill below */
                 break;

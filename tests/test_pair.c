@@ -561,6 +561,65 @@ static psys_system *lattice_with_pair(int law, psys_pair_method method, double s
     return sys;
 }
 
+/* The lists hold every pair within the list radius, however the build
+ * tests the distances (the AVX-512 build in single precision, whose
+ * roundings at coordinates of 100 are a hundred times the 1e-7 margin used
+ * here): a box far from the origin, with 400 pairs placed at 1 − 1e-7 of
+ * the radius in random directions among 1,200 particles. The lists may
+ * also hold a few pairs just outside (at most 1e-3 of the radius). */
+static void grid_lists_keep_radius(void)
+{
+    urand_seed(11);
+    psys_system *sys = make_system(3);
+    const double lo[3] = {100, -120, 90}, L = 3.0, rl = 0.5;
+    double hi[3];
+    for (int k = 0; k < 3; k++)
+        hi[k] = lo[k] + L;
+    bool per[3] = {true, true, true};
+    CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_OK);
+    for (int i = 0; i < 800; i++) {
+        double x[3], u[3], r = 0;
+        for (int k = 0; k < 3; k++) {
+            x[k] = lo[k] + urand(0.05, L - 0.05);
+            u[k] = urand(-1, 1);
+            r += u[k] * u[k];
+        }
+        add_particle(sys, x, NULL, 1);
+        if (i % 2)
+            continue;
+        r = sqrt(r);
+        for (int k = 0; k < 3; k++) {
+            x[k] += u[k] / r * rl * (1 - 1e-7);
+            x[k] = x[k] < lo[k] ? x[k] + L : x[k] >= hi[k] ? x[k] - L : x[k];
+        }
+        add_particle(sys, x, NULL, 1);
+    }
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_SOFT_REPULSION;
+    def.radius = 0.4;
+    def.skin = 0.1;
+    add_pair(sys, &def);
+    free(forces_of(sys));
+    const size_t n = psys_system_count(sys);
+    const double *x = psys_system_positions(sys);
+    size_t within = 0, near = 0;
+    for (size_t i = 0; i < n; i++)
+        for (size_t j = i + 1; j < n; j++) {
+            double r2 = 0;
+            for (int k = 0; k < 3; k++) {
+                double e = x[i * 3 + k] - x[j * 3 + k];
+                e -= L * round(e / L);
+                r2 += e * e;
+            }
+            within += r2 < rl * rl;
+            near += r2 < rl * rl * (1 + 2e-3);
+        }
+    psys_pair_stats st;
+    CHECK(psys_system_pair_stats(sys, 0, &st) == PSYS_OK);
+    CHECK(within >= 400 && st.pairs >= within && st.pairs <= near);
+    psys_system_destroy(sys);
+}
+
 static void grid_equals_direct_lattice(void)
 {
     const size_t n = 1000;
@@ -1515,6 +1574,7 @@ static const check_case cases[] = {
     {"grid_equals_direct_periodic_3d", grid_equals_direct_periodic_3d},
     {"grid_equals_direct_dense", grid_equals_direct_dense},
     {"grid_equals_direct_lattice", grid_equals_direct_lattice},
+    {"grid_lists_keep_radius", grid_lists_keep_radius},
     {"grid_rebuild_criterion", grid_rebuild_criterion},
     {"grid_cache_matches_direct", grid_cache_matches_direct},
     {"minimum_image", minimum_image},
