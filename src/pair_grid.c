@@ -239,8 +239,8 @@ __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g,
  * is filled, in cache, beat sorting all of them by transposition (LJ melt,
  * 32,000 atoms: 251.8 against 272.4 ns per atom-step, bench/README). */
 #define SORT512_REGS 8
-__attribute__((target("avx512f"), always_inline)) static inline void sort512_regs(uint32_t *a, size_t n,
-                                                                                   const int M)
+__attribute__((target("avx512f"), always_inline)) static inline void sort512_regs(const uint32_t *a, size_t n,
+                                                                                   uint32_t *dst, const int M)
 {
     __m512i v[SORT512_REGS];
     const __m512i pad = _mm512_set1_epi32(-1), lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12,
@@ -303,25 +303,40 @@ __attribute__((target("avx512f"), always_inline)) static inline void sort512_reg
     for (int r = 0; r < U; r++) {
         const size_t at = 16 * (size_t)r, left = n - at;
         const __mmask16 live = left >= 16 ? (__mmask16)0xffff : (__mmask16)((1u << left) - 1);
-        _mm512_mask_storeu_epi32(a + at, live, v[r]);
+        _mm512_mask_storeu_epi32(dst + at, live, v[r]);
     }
 }
 
-/* sort512_regs with the fewest registers that hold n (n <= 128); false,
- * touching nothing, if n is larger. */
-__attribute__((target("avx512f"))) static bool sort_avx512(uint32_t *a, size_t n)
+/* a[0..n) sorted into dst[0..n) (dst may be a) by sort512_regs with the
+ * fewest registers that hold n (n <= 128); false, touching nothing, if n
+ * is larger. */
+__attribute__((target("avx512f"))) static bool sort_avx512_to(const uint32_t *a, size_t n, uint32_t *dst)
 {
     if (n <= 16)
-        sort512_regs(a, n, 1);
+        sort512_regs(a, n, dst, 1);
     else if (n <= 32)
-        sort512_regs(a, n, 2);
+        sort512_regs(a, n, dst, 2);
     else if (n <= 64)
-        sort512_regs(a, n, 4);
+        sort512_regs(a, n, dst, 4);
     else if (n <= 16 * SORT512_REGS)
-        sort512_regs(a, n, SORT512_REGS);
+        sort512_regs(a, n, dst, SORT512_REGS);
     else
         return false;
     return true;
+}
+
+__attribute__((target("avx512f"))) static bool sort_avx512(uint32_t *a, size_t n) { return sort_avx512_to(a, n, a); }
+
+/* List a[0..n) sorted into nb's slot of particle i (n <= room), or only
+ * counted if longer (tmp: SORT_MAX entries of scratch). */
+__attribute__((target("avx512f"))) static void list_store(pair_grid *g, size_t i, uint32_t *a, size_t n, size_t room,
+                                                           uint32_t *tmp)
+{
+    if (n <= room && !sort_avx512_to(a, n, g->nb + i * room)) {
+        sort_indices(a, n, tmp);
+        memcpy(g->nb + i * room, a, n * sizeof(uint32_t));
+    }
+    g->nb_num[i] = (uint32_t)n;
 }
 #endif
 
@@ -786,11 +801,7 @@ __attribute__((target("avx512f"))) static size_t fill_cell(pair_grid *g, const s
             const size_t i = g->cell_list[h0 + (uint32_t)h];
             if (cnt[h] > CELL_LIST)
                 return SIZE_MAX;
-            if (!sort_avx512(buf[h], cnt[h]))
-                sort_indices(buf[h], cnt[h], tmp);
-            if (cnt[h] <= room)
-                memcpy(g->nb + i * room, buf[h], cnt[h] * sizeof(uint32_t));
-            g->nb_num[i] = (uint32_t)cnt[h];
+            list_store(g, i, buf[h], cnt[h], room, tmp);
             longest = cnt[h] > longest ? cnt[h] : longest;
         }
     }
@@ -886,12 +897,7 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
                                                      : window_list(g, sl, xs, ss, js, nu, rl2, out, 2, false));
                 if (cnt > CELL_LIST)
                     return SIZE_MAX;
-                if (!sort_avx512(out, cnt))
-                    sort_indices(out, cnt, tmp);
-                const size_t i = g->cell_list[sl];
-                if (cnt <= room)
-                    memcpy(g->nb + i * room, out, cnt * sizeof(uint32_t));
-                g->nb_num[i] = (uint32_t)cnt;
+                list_store(g, g->cell_list[sl], out, cnt, room, tmp);
                 longest = cnt > longest ? cnt : longest;
             }
         }
