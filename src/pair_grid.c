@@ -239,66 +239,81 @@ __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g,
  * is filled, in cache, beat sorting all of them by transposition (LJ melt,
  * 32,000 atoms: 251.8 against 272.4 ns per atom-step, bench/README). */
 #define SORT512_REGS 8
+/* v with lane l taking lane l ^ X: in-lane shuffles with an immediate and
+ * 128-bit lane moves (one or two instructions of a cycle each) instead of
+ * the general permute. */
+#define XL1(v) _mm512_shuffle_epi32((v), (_MM_PERM_ENUM)0xB1)
+#define XL2(v) _mm512_shuffle_epi32((v), (_MM_PERM_ENUM)0x4E)
+#define XL3(v) _mm512_shuffle_epi32((v), (_MM_PERM_ENUM)0x1B)
+#define XL4(v) _mm512_shuffle_i32x4((v), (v), 0xB1)
+#define XL8(v) _mm512_shuffle_i32x4((v), (v), 0x4E)
+__attribute__((target("avx512f"), always_inline)) static inline __m512i xl7(__m512i v)
+{
+    v = XL3(v);
+    return XL4(v);
+}
+__attribute__((target("avx512f"), always_inline)) static inline __m512i xl15(__m512i v)
+{
+    v = XL3(v);
+    return _mm512_shuffle_i32x4(v, v, 0x1B);
+}
+/* One in-register stage on registers 0..U-1: lane l against lane l ^ x
+ * (XL: the exchange), the lanes of `upper` taking the larger. */
+#define SORT_STAGE(XL, upper)                                                                              \
+    for (int r = 0; r < U; r++) {                                                                      \
+        const __m512i w_ = XL(v[r]);                                                                   \
+        v[r] = _mm512_mask_blend_epi32((__mmask16)(upper), _mm512_min_epu32(v[r], w_), _mm512_max_epu32(v[r], w_)); \
+    }
+
 __attribute__((target("avx512f"), always_inline)) static inline void sort512_regs(const uint32_t *a, size_t n,
                                                                                    uint32_t *dst, const int M)
 {
     __m512i v[SORT512_REGS];
-    const __m512i pad = _mm512_set1_epi32(-1), lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12,
-                                                                         13, 14, 15);
-    const __m512i rev = _mm512_xor_si512(lane, _mm512_set1_epi32(15));
+    const __m512i pad = _mm512_set1_epi32(-1);
     const int U = (int)((n + 15) / 16); /* registers holding data */
     for (int r = 0; r < M; r++) {
         const size_t at = 16 * (size_t)r, left = n > at ? n - at : 0;
         const __mmask16 live = left >= 16 ? (__mmask16)0xffff : (__mmask16)((1u << left) - 1);
         v[r] = r < U ? _mm512_mask_loadu_epi32(pad, live, a + at) : pad;
     }
-    for (int k = 2; k <= 16 * M; k <<= 1) {
-        if (k <= 16) { /* mirror within each register: lane l against l ^ (k - 1) */
-            const __m512i idx = _mm512_xor_si512(lane, _mm512_set1_epi32(k - 1));
-            unsigned upper = 0; /* lanes that take the larger */
-            for (int l = 0; l < 16; l++)
-                upper |= (unsigned)((l & (k >> 1)) != 0) << l;
-            for (int r = 0; r < M; r++) {
-                if (r >= U)
-                    break;
-                const __m512i w = _mm512_permutexvar_epi32(idx, v[r]);
-                v[r] = _mm512_mask_blend_epi32((__mmask16)upper, _mm512_min_epu32(v[r], w), _mm512_max_epu32(v[r], w));
-            }
-        } else { /* mirror across the registers of each block of k/16 */
-            const int q = k >> 4;
-            for (int r = 0; r < M; r++) {
-                const int r2 = r ^ (q - 1);
-                if ((r & (q >> 1)) || r2 >= U)
-                    continue;
-                const __m512i w = _mm512_permutexvar_epi32(rev, v[r2]);
-                const __m512i hi = _mm512_max_epu32(v[r], w);
-                v[r] = _mm512_min_epu32(v[r], w);
-                v[r2] = _mm512_permutexvar_epi32(rev, hi);
-            }
-        }
-        for (int j = k >> 2; j > 0; j >>= 1) {
-            if (j >= 16) {
-                const int q = j >> 4;
-                for (int r = 0; r < M; r++) {
-                    if ((r & q) || (r | q) >= U)
-                        continue;
-                    const __m512i lo = _mm512_min_epu32(v[r], v[r | q]);
-                    v[r | q] = _mm512_max_epu32(v[r], v[r | q]);
-                    v[r] = lo;
-                }
+    /* blocks of 2, 4, 8, 16 within each register: the mirror (lane l
+     * against l ^ (k - 1)), then halves, quarters, ... */
+    SORT_STAGE(XL1, 0xAAAA)
+    SORT_STAGE(XL3, 0xCCCC)
+    SORT_STAGE(XL1, 0xAAAA)
+    SORT_STAGE(xl7, 0xF0F0)
+    SORT_STAGE(XL2, 0xCCCC)
+    SORT_STAGE(XL1, 0xAAAA)
+    SORT_STAGE(xl15, 0xFF00)
+    SORT_STAGE(XL4, 0xF0F0)
+    SORT_STAGE(XL2, 0xCCCC)
+    SORT_STAGE(XL1, 0xAAAA)
+    for (int k = 32; k <= 16 * M; k <<= 1) {
+        /* mirror across the registers of each block of k/16 */
+        const int q = k >> 4;
+        for (int r = 0; r < M; r++) {
+            const int r2 = r ^ (q - 1);
+            if ((r & (q >> 1)) || r2 >= U)
                 continue;
-            }
-            const __m512i idx = _mm512_xor_si512(lane, _mm512_set1_epi32(j));
-            unsigned upper = 0;
-            for (int l = 0; l < 16; l++)
-                upper |= (unsigned)((l & j) != 0) << l;
+            const __m512i w = xl15(v[r2]);
+            const __m512i hi = _mm512_max_epu32(v[r], w);
+            v[r] = _mm512_min_epu32(v[r], w);
+            v[r2] = xl15(hi);
+        }
+        for (int j = k >> 2; j >= 16; j >>= 1) {
+            const int qj = j >> 4;
             for (int r = 0; r < M; r++) {
-                if (r >= U)
-                    break;
-                const __m512i w = _mm512_permutexvar_epi32(idx, v[r]);
-                v[r] = _mm512_mask_blend_epi32((__mmask16)upper, _mm512_min_epu32(v[r], w), _mm512_max_epu32(v[r], w));
+                if ((r & qj) || (r | qj) >= U)
+                    continue;
+                const __m512i lo = _mm512_min_epu32(v[r], v[r | qj]);
+                v[r | qj] = _mm512_max_epu32(v[r], v[r | qj]);
+                v[r] = lo;
             }
         }
+        SORT_STAGE(XL8, 0xFF00)
+        SORT_STAGE(XL4, 0xF0F0)
+        SORT_STAGE(XL2, 0xCCCC)
+        SORT_STAGE(XL1, 0xAAAA)
     }
     for (int r = 0; r < U; r++) {
         const size_t at = 16 * (size_t)r, left = n - at;
