@@ -891,11 +891,15 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
         for (int o = cy - 2; o <= cy + 2; o++)
             shifted |= bsh[(o + 8) & 7];
         if (s0 < s1) {
+            /* padding past the end, in the arrays this window reads */
             for (size_t q = w->end; q < w->end + 16; q++) {
                 for (int k = 0; k < 3; k++) {
+                    if (wm.f32) {
+                        w->xf[k][q] = NAN;
+                        continue;
+                    }
                     w->x[k][q] = NAN;
                     w->s[k][q] = 0;
-                    w->xf[k][q] = NAN;
                 }
                 w->j[q] = 0;
             }
