@@ -300,13 +300,14 @@ static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 #define ROWS_CHUNK 64
 
 /* Grid forces over full lists: four rows at a time where that runs
- * (pair_group.c), else through rows_fns, in parallel by chunks of rows. */
-static void grid_rows(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
-                      const unsigned char *mark, double *out, int nt)
+ * (pair_group.c; true), else through rows_fns, in parallel by chunks of
+ * rows. changed: see psys__pair_group_forces. */
+static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                      const unsigned char *mark, const uint32_t *changed, size_t nchanged, double *out, int nt)
 {
-    if (psys__pair_group_forces(p, m, x, w, n, mark, out, nt)) {
+    if (psys__pair_group_forces(p, m, x, w, n, mark, changed, nchanged, out, nt)) {
         p->stats.grouped++;
-        return;
+        return true;
     }
     pair_soa_positions(p, x, n, nt);
     const rows_fn fn = rows_fns[p->law][p->dim == 3];
@@ -317,6 +318,7 @@ static void grid_rows(pair_force *p, const pair_image *m, const double *x, const
         size_t i0 = c * ROWS_CHUNK, i1 = i0 + ROWS_CHUNK < n ? i0 + ROWS_CHUNK : n;
         fn(p, m, w, i0, i1, mark, out);
     }
+    return false;
 }
 
 /* Grid method with half lists (one thread): a sweep over i in increasing
@@ -481,12 +483,16 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         fn(p, m, x, w, n, NULL, ep, nt);
         return;
     }
+    /* the position records of pair_group.c match xcache only if this
+     * evaluation says so below */
+    const bool xq_cached = g->xq_cached;
+    g->xq_cached = false;
     const unsigned char *own = psys__dist_mark(p->sys);
     if (own && own != p->sys->own_mark) {
         /* MPI, replicated state (mpi.c): this rank's rows only, which change
          * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
-            grid_rows(p, m, x, w, n, own, g->fcache, nt);
+            grid_rows(p, m, x, w, n, own, NULL, 0, g->fcache, nt);
         } else {
             fn(p, m, x, w, n, own, g->fcache, nt);
         }
@@ -564,8 +570,9 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         for (size_t i = 0; i < n; i++)
             if (!own[i])
                 memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
+    bool records = false; /* pair_group.c's records now hold x */
     if (compute && !g->half && pair_can_vectorise(p, w, n))
-        grid_rows(p, m, x, w, n, rows, g->fcache, nt);
+        records = grid_rows(p, m, x, w, n, rows, mark && xq_cached ? g->changed : NULL, nc, g->fcache, nt);
     else if (compute)
         fn(p, m, x, w, n, rows, g->fcache, nt);
     if (mark) {
@@ -580,6 +587,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             g->xcache[k] = x[k];
     }
     g->cache_ok = cacheable;
+    g->xq_cached = cacheable && (records || (!compute && xq_cached));
     g->cache_n = n;
     g->cache_rebuilds = p->stats.rebuilds;
     PSYS_PAR_FOR(ntv, nd)

@@ -90,6 +90,8 @@ typedef struct pair_grid {
     size_t cache_n, cache_rebuilds;
     double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair_group.c,
                               xq 32-byte aligned in xq_mem */
+    bool xq_cached;        /* xq holds xcache's positions, within the bounds xq_lo, xq_hi */
+    double xq_lo[3], xq_hi[3];
     /* pair_group.c's copy of the full lists, interleaved by groups of
      * gl_width consecutive rows (one load stream instead of one per row):
      * entry k of row b·gl_width + l at gl[gl_start[b] + k·gl_width + l], as
@@ -481,12 +483,15 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 /** Grid forces over the full lists of every row (or the marked ones) stored
  *  into out, four or eight rows at a time, from the positions x (particle
  *  major; copied as records, and into p->xsoa only where some row may go
- *  through pair_row_forces): the same bits as pair_row_forces. False if that
+ *  through pair_row_forces): the same bits as pair_row_forces. changed: when
+ *  not NULL, the records (pair_grid.xq, xq_cached) hold xcache, from which
+ *  x differs only in particles changed[0..nchanged): only theirs are copied.
+ *  False if that
  *  path does not run here (a law it does not support, no AVX2,
  *  PSYS_GROUP_OFF set, no interleaved lists for its width); nothing was
  *  written. */
-bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
-                             const unsigned char *rows, double *out, int nt);
+bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
+                             const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *out, int nt);
 /** After a build of full lists: the interleaved copy psys__pair_group_forces
  *  reads (pair_grid.gl), where that path runs. False if storage could not grow. */
 bool psys__pair_group_lists(pair_force *p, size_t n, int nt);

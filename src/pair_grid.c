@@ -64,6 +64,7 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     g->built_n = 0; /* storage changes: rebuild at the next evaluation */
     g->cache_ok = false;
     g->gl_ok = false;
+    g->xq_cached = false;
 #define GROW(field, count, type)                            \
     if (!(q = psys__realloc(g->field, (count), sizeof(type)))) \
         return false;                                       \

@@ -554,11 +554,11 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
     return true;
 }
 
-bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const double *x_in, const double *w, size_t n,
-                             const unsigned char *rows, double *out, int nt)
+bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x_in, const double *w, size_t n,
+                             const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *out, int nt)
 {
 #if defined(PSYS_GROUP_AVX2)
-    const pair_grid *g = &p->grid;
+    pair_grid *g = &p->grid;
     if (!group_wanted(p))
         return false;
     group_ctx x;
@@ -583,10 +583,21 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
      * check of GROUP_CHECK cannot fire and the image changes nothing, so
      * both are skipped (GROUP_PLAIN, GROUP_AXES: the same bits) */
     double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY, hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
+    /* a partial evaluation (velocity Verlet's first of a step: the particles
+     * wrapped into the box) copies only the changed records; the bounds
+     * then cover the cached positions and the new ones, a superset, which
+     * can only make the image checks below more careful */
+    const bool update = changed != NULL;
+    if (update) {
+        lo0 = g->xq_lo[0], lo1 = g->xq_lo[1], lo2 = g->xq_lo[2];
+        hi0 = g->xq_hi[0], hi1 = g->xq_hi[1], hi2 = g->xq_hi[2];
+    }
+    const size_t ncopy = update ? nchanged : n;
     (void)nt;
-    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && n >= PSYS_PAR_MIN) \
+    PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && ncopy >= PSYS_PAR_MIN) \
              reduction(min: lo0, lo1, lo2) reduction(max: hi0, hi1, hi2))
-    for (size_t i = 0; i < n; i++) {
+    for (size_t t = 0; t < ncopy; t++) {
+        const size_t i = update ? changed[t] : t;
         const double a = x_in[dd * i], b = x_in[dd * i + 1], z = three ? x_in[dd * i + 2] : 0.0;
         Q[4 * i] = a;
         Q[4 * i + 1] = b;
@@ -599,6 +610,10 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
         lo2 = z < lo2 ? z : lo2;
         hi2 = z > hi2 ? z : hi2;
     }
+    /* the caller sets xq_cached once x is the cache's (force_pair.c) */
+    g->xq_cached = false;
+    g->xq_lo[0] = lo0, g->xq_lo[1] = lo1, g->xq_lo[2] = lo2;
+    g->xq_hi[0] = hi0, g->xq_hi[1] = hi1, g->xq_hi[2] = hi2;
     bool in_box = m->on;
     {
         const psys__box *box = &p->sys->box;
@@ -632,6 +647,8 @@ bool psys__pair_group_forces(const pair_force *p, const pair_image *m, const dou
     (void)w;
     (void)n;
     (void)rows;
+    (void)changed;
+    (void)nchanged;
     (void)out;
     (void)nt;
     return false;

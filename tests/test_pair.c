@@ -648,6 +648,40 @@ static void grid_equals_direct_lattice(void)
     }
 }
 
+/* A few particles moved between evaluations (lists kept): only they and
+ * their partners are recomputed (a partial evaluation, whose position
+ * records are updated for the moved particles only), and the forces are
+ * still direct's, bit for bit; one moved particle leaves the box through a
+ * face, one is put back in (as a wrap does). */
+static void grid_partial_matches_direct(void)
+{
+    for (int pass = 0; pass < 2; pass++) {
+        const int law = pass ? PSYS_PAIR_SOFT_REPULSION : PSYS_PAIR_LENNARD_JONES;
+        psys_system *a = lattice_with_pair(law, PSYS_PAIR_GRID, 1);
+        psys_system *b = lattice_with_pair(law, PSYS_PAIR_DIRECT, 1);
+        const size_t moved[5] = {3, 250, 511, 777, 998};
+        for (int round = 0; round < 6; round++) {
+            check_same_forces(a, b);
+            for (int q = 0; q < 5; q++) {
+                double x[3];
+                memcpy(x, psys_system_positions(a) + moved[q] * 3, sizeof x);
+                for (int k = 0; k < 3; k++)
+                    x[k] += urand(-0.004, 0.004);
+                if (q == 0) /* across the face x = 0 and back: 2 is the box length */
+                    x[0] += round % 2 ? 2.0 : -2.0;
+                CHECK(psys_system_set_particle(a, moved[q], x, NULL) == PSYS_OK);
+                CHECK(psys_system_set_particle(b, moved[q], x, NULL) == PSYS_OK);
+            }
+        }
+        psys_pair_stats st;
+        CHECK(psys_system_pair_stats(a, 0, &st) == PSYS_OK);
+        CHECK(st.partial >= 4 && st.fallbacks == 0);
+        CHECK(group_loops_run() ? st.grouped > 0 : st.grouped == 0);
+        psys_system_destroy(a);
+        psys_system_destroy(b);
+    }
+}
+
 /* Lists are rebuilt only when the two largest displacements since the last
  * build add up to the skin or more. */
 static void grid_rebuild_criterion(void)
@@ -1577,6 +1611,7 @@ static const check_case cases[] = {
     {"grid_lists_keep_radius", grid_lists_keep_radius},
     {"grid_rebuild_criterion", grid_rebuild_criterion},
     {"grid_cache_matches_direct", grid_cache_matches_direct},
+    {"grid_partial_matches_direct", grid_partial_matches_direct},
     {"minimum_image", minimum_image},
     {"minimum_image_far", minimum_image_far},
     {"minimum_image_far_groups", minimum_image_far_groups},
