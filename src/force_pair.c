@@ -447,20 +447,6 @@ static void direct_eval(const pair_force *p, const pair_image *m, const double *
     direct_fns[p->law][variant(p->dim, want_u)](p, m, x, w, n, f, ep, total, nt, mark, vec);
 }
 
-/* Particle i's position differs (bitwise, up to NaN payloads) from the cached one. */
-static inline bool moved_since(const double *x, const double *xc, size_t i, int d)
-{
-    for (int k = 0; k < d; k++) {
-        double a = x[i * d + k], b = xc[i * d + k];
-        if (a != b || signbit(a) != signbit(b))
-            return true;
-    }
-    return false;
-}
-
-/* At most this many threads look for the moved particles of a cached evaluation. */
-#define PAIR_MOVED_THREADS 64
-
 /* Grid method. Forces go through a cache: a particle's force depends only
  * on its position and those of its partners, so when the lists have not
  * been rebuilt since the last evaluation and only a few particles moved
@@ -480,13 +466,16 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     (void)ntv;
     grid_fn fn = (g->half ? half_fns : grid_fns)[p->law][variant(d, want_u)];
     if (want_u) {
+        g->moved_ready = false;
         fn(p, m, x, w, n, NULL, ep, nt);
         return;
     }
     /* the position records of pair_group.c match xcache only if this
      * evaluation says so below */
-    const bool xq_cached = g->xq_cached;
+    const bool xq_cached = g->xq_cached, moved_ready = g->moved_ready;
     g->xq_cached = false;
+    g->moved_ready = false;
+    g->disp_ok = false;
     const unsigned char *own = psys__dist_mark(p->sys);
     if (own && own != p->sys->own_mark) {
         /* MPI, replicated state (mpi.c): this rank's rows only, which change
@@ -506,29 +495,8 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     size_t nc = 0;
     bool compute = true;
     if (cacheable && g->cache_ok && g->cache_n == n && g->cache_rebuilds == p->stats.rebuilds) {
-        /* the moved particles in index order: each thread lists those of
-         * its static range at the range's start, then the lists are joined */
-        const int ntm = pair_threads(p, 2.0 * (double)nd);
-        size_t at[PAIR_MOVED_THREADS + 1] = {0}, cnt[PAIR_MOVED_THREADS] = {0};
-        const int nm = ntm < PAIR_MOVED_THREADS ? ntm : PAIR_MOVED_THREADS;
-        for (int t = 0; t <= nm; t++)
-            at[t] = n * (size_t)t / (size_t)nm;
-        PSYS_OMP(omp parallel for schedule(static, 1) num_threads(nm) if (nm > 1))
-        for (int t = 0; t < nm; t++) {
-            size_t c = 0;
-            for (size_t i = at[t]; i < at[t + 1] && c <= n / 8; i++)
-                if (moved_since(x, g->xcache, i, d))
-                    g->changed[at[t] + c++] = (uint32_t)i;
-            cnt[t] = c;
-        }
-        for (int t = 0; t < nm; t++) {
-            if (nc + cnt[t] > n / 8) { /* too many for a partial evaluation */
-                nc = n / 8 + 1;
-                break;
-            }
-            memmove(g->changed + nc, g->changed + at[t], cnt[t] * sizeof(uint32_t));
-            nc += cnt[t];
-        }
+        /* the moved particles (listed by the displacement check where it could) */
+        nc = moved_ready ? g->moved_n : psys__pair_grid_moved(p, x, n);
         if (nc == 0) {
             compute = false;
         } else if (nc <= n / 8) {
@@ -588,6 +556,9 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     }
     g->cache_ok = cacheable;
     g->xq_cached = cacheable && (records || (!compute && xq_cached));
+    g->disp_ok = cacheable;
+    g->disp[0] = g->disp_now[0];
+    g->disp[1] = g->disp_now[1];
     g->cache_n = n;
     g->cache_rebuilds = p->stats.rebuilds;
     PSYS_PAR_FOR(ntv, nd)

@@ -88,6 +88,14 @@ typedef struct pair_grid {
     uint32_t *changed;         /* cap: particles whose position changed (between builds; a build uses it as scratch) */
     bool cache_ok;
     size_t cache_n, cache_rebuilds;
+    /* displacement check (pair_grid.c): the two largest squared
+     * displacements since the build at xcache's positions (disp_ok), and
+     * those of the evaluation under way (disp_now); moved_n particles in
+     * changed[] differ from xcache when moved_ready (set by the check for
+     * the evaluation that follows it, n / 8 + 1: too many to list) */
+    bool disp_ok, moved_ready;
+    double disp[2], disp_now[2];
+    size_t moved_n;
     double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair_group.c,
                               xq 32-byte aligned in xq_mem */
     bool xq_cached;        /* xq holds xcache's positions, within the bounds xq_lo, xq_hi */
@@ -469,6 +477,9 @@ static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
 bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e);
 /** Free grid storage. */
 void psys__pair_grid_free(pair_grid *g);
+/** The particles whose positions x differ from xcache, in index order, into
+ *  pair_grid.changed; their count, or n / 8 + 1 if more than n / 8. */
+size_t psys__pair_grid_moved(pair_force *p, const double *x, size_t n);
 /** MPI domain (ghosts have no lists): mark (|= 1) every owned particle in the
  *  cells around ghost c's cell at the last build, the cells a list build
  *  scans: a superset of the owned particles whose lists hold c. */

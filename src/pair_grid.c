@@ -1333,6 +1333,57 @@ static inline double moved2(const pair_image *m, const double *x, const double *
     return r2;
 }
 
+/* Particle i's position differs (bitwise, up to NaN payloads) from the cached one. */
+static inline bool moved_since(const double *x, const double *xc, size_t i, int d)
+{
+    for (int k = 0; k < d; k++) {
+        double a = x[i * d + k], b = xc[i * d + k];
+        if (a != b || signbit(a) != signbit(b))
+            return true;
+    }
+    return false;
+}
+
+/* At most this many threads look for the moved particles of a cached evaluation. */
+#define PAIR_MOVED_THREADS 64
+
+size_t psys__pair_grid_moved(pair_force *p, const double *x, size_t n)
+{
+    pair_grid *g = &p->grid;
+    const int d = p->dim;
+    /* each thread lists those of its static range at the range's start,
+     * then the lists are joined */
+    const int ntm = pair_threads(p, 2.0 * (double)n * (double)d);
+    size_t at[PAIR_MOVED_THREADS + 1] = {0}, cnt[PAIR_MOVED_THREADS] = {0}, nc = 0;
+    const int nm = ntm < PAIR_MOVED_THREADS ? ntm : PAIR_MOVED_THREADS;
+    for (int t = 0; t <= nm; t++)
+        at[t] = n * (size_t)t / (size_t)nm;
+    PSYS_OMP(omp parallel for schedule(static, 1) num_threads(nm) if (nm > 1))
+    for (int t = 0; t < nm; t++) {
+        size_t c = 0;
+        for (size_t i = at[t]; i < at[t + 1] && c <= n / 8; i++)
+            if (moved_since(x, g->xcache, i, d))
+                g->changed[at[t] + c++] = (uint32_t)i;
+        cnt[t] = c;
+    }
+    for (int t = 0; t < nm; t++) {
+        if (nc + cnt[t] > n / 8) /* too many for a partial evaluation */
+            return n / 8 + 1;
+        memmove(g->changed + nc, g->changed + at[t], cnt[t] * sizeof(uint32_t));
+        nc += cnt[t];
+    }
+    return nc;
+}
+
+/* The two largest of (*m1, *m2) and r2 (NaN: flagged in *bad). */
+static inline void top_two(double r2, double *m1, double *m2, int *bad)
+{
+    const double lo = r2 < *m1 ? r2 : *m1;
+    *bad |= !(r2 == r2);
+    *m2 = lo > *m2 ? lo : *m2;
+    *m1 = r2 > *m1 ? r2 : *m1;
+}
+
 /* The lists stay valid while the two largest displacements since the build
  * add up to less than the skin: no pair can then have closed its gap by the
  * skin (max > skin/2, the usual test, is more conservative). NaN forces a
@@ -1346,37 +1397,54 @@ bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
     pair_image m;
     pair_image_of(&p->sys->box, &m);
     const bool half = pair_grid_wants_half(p, n);
+    g->moved_ready = false;
     if (g->built_n == n && g->half == half && box_equal(&g->box, &p->sys->box)) {
         const double *x = e->x, *xr = g->xref, skin = p->def.skin;
-        /* the two largest in one pass (m2 = m1 when two reach it); max and
-         * min are exact, so any split over threads gives the same pair */
+        const double lim = skin - 1e-12 * (skin + sqrt(p->rc2));
         double m1 = 0, m2 = 0;
-        int bad = 0, nt = pair_threads(p, 4.0 * (double)n);
-        (void)nt;
-        PSYS_OMP(omp parallel num_threads(nt) if (nt > 1))
-        {
-            double t1 = 0, t2 = 0;
-            int tb = 0;
-            PSYS_OMP(omp for schedule(static))
-            for (size_t i = 0; i < n; i++) {
-                const double r2 = moved2(&m, x, xr, i, d); /* NaN: flagged, and no effect below */
-                const double lo = r2 < t1 ? r2 : t1;
-                tb |= !(r2 == r2);
-                t2 = lo > t2 ? lo : t2;
-                t1 = r2 > t1 ? r2 : t1;
-            }
-            PSYS_OMP(omp critical(psys_grid_moved))
+        int bad = 0;
+        /* the forces' cache holds the last evaluation and the two largest
+         * displacements there (velocity Verlet's first evaluation of a step
+         * finds those positions but for the particles wrapped into the box):
+         * only the moved particles are looked at, their displacements taken
+         * with the two cached ones, an upper bound on the two largest */
+        size_t nc = n / 8 + 1;
+        if (g->disp_ok && g->cache_ok && g->cache_n == n && g->cache_rebuilds == p->stats.rebuilds)
+            nc = psys__pair_grid_moved(p, x, n);
+        if (nc <= n / 8) {
+            m1 = g->disp[0];
+            m2 = g->disp[1];
+            for (size_t t = 0; t < nc; t++)
+                top_two(moved2(&m, x, xr, g->changed[t], d), &m1, &m2, &bad);
+        } else {
+            /* the two largest in one pass (m2 = m1 when two reach it); max
+             * and min are exact, so any split over threads gives the same pair */
+            int nt = pair_threads(p, 4.0 * (double)n);
+            (void)nt;
+            PSYS_OMP(omp parallel num_threads(nt) if (nt > 1))
             {
-                m2 = fmax(fmax(m2, t2), fmin(m1, t1));
-                m1 = fmax(m1, t1);
-                bad |= tb;
+                double t1 = 0, t2 = 0;
+                int tb = 0;
+                PSYS_OMP(omp for schedule(static))
+                for (size_t i = 0; i < n; i++)
+                    top_two(moved2(&m, x, xr, i, d), &t1, &t2, &tb); /* NaN: flagged, and no effect */
+                PSYS_OMP(omp critical(psys_grid_moved))
+                {
+                    m2 = fmax(fmax(m2, t2), fmin(m1, t1));
+                    m1 = fmax(m1, t1);
+                    bad |= tb;
+                }
             }
         }
-        const double lim = skin - 1e-12 * (skin + sqrt(p->rc2));
-        if (!bad && m1 == 0)
-            return true; /* nothing moved */
-        if (!bad && sqrt(m1) + sqrt(m2) < lim)
-            return true; /* no pair can have closed the skin */
+        if (!bad && (m1 == 0 || sqrt(m1) + sqrt(m2) < lim)) {
+            /* nothing moved, or no pair can have closed the skin */
+            g->disp_now[0] = m1;
+            g->disp_now[1] = m2;
+            g->moved_ready = nc <= n / 8;
+            g->moved_n = nc;
+            return true;
+        }
     }
+    g->disp_now[0] = g->disp_now[1] = 0;
     return build(p, e, &m, half);
 }
