@@ -56,7 +56,7 @@ mp=$(median "${psys_s[@]}")
 if [ "$have_lmp" = 1 ]; then
     ml=$(median "${lmp_s[@]}")
     mc=$(median "${lmpc_s[@]}")
-    awk -v p="$mp" -v l="$ml" -v c="$mc" -v th="$threads" 'BEGIN{printf "{\"case\":\"lj-melt-vs-lammps\",\"atoms\":'"$atoms"',\"psys_threads\":%d,\"psys_seconds\":%s,\"lammps_seconds\":%s,\"lammps_check_seconds\":%s,\"psys_over_lammps\":%.2f,\"psys_over_lammps_check\":%.2f}\n", th, p, l, c, p/l, p/c}'
+    awk -v p="$mp" -v l="$ml" -v c="$mc" -v th="$threads" 'BEGIN{printf "{\"case\":\"lj-melt-vs-lammps\",\"atoms\":'"$atoms"',\"psys_threads\":%d,\"psys_seconds\":%s,\"lammps_seconds\":%s,\"lammps_check_seconds\":%s,\"psys_over_lammps\":%.3f,\"psys_over_lammps_check\":%.3f}\n", th, p, l, c, p/l, p/c}'
 else
     echo "{\"case\":\"lj-melt-vs-lammps\",\"psys_threads\":$threads,\"psys_seconds\":$mp,\"lammps\":\"not installed\"}"
 fi
