@@ -496,11 +496,10 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
  *  major; copied as records, and into p->xsoa only where some row may go
  *  through pair_row_forces): the same bits as pair_row_forces. changed: when
  *  not NULL, the records (pair_grid.xq, xq_cached) hold xcache, from which
- *  x differs only in particles changed[0..nchanged): only theirs are copied.
- *  False if that
- *  path does not run here (a law it does not support, no AVX2,
- *  PSYS_GROUP_OFF set, no interleaved lists for its width); nothing was
- *  written. */
+ *  x differs only in particles changed[0..nchanged): only theirs are
+ *  copied. False if that path does not run here (a law it does not
+ *  support, no AVX2, PSYS_GROUP_OFF set, no interleaved lists for its
+ *  width); nothing was written. */
 bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                              const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *out, int nt);
 /** After a build of full lists: the interleaved copy psys__pair_group_forces
