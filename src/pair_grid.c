@@ -1409,7 +1409,8 @@ bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
          * only the moved particles are looked at, their displacements taken
          * with the two cached ones, an upper bound on the two largest */
         size_t nc = n / 8 + 1;
-        if (g->disp_ok && g->cache_ok && g->cache_n == n && g->cache_rebuilds == p->stats.rebuilds)
+        const bool scanned = g->disp_ok && g->cache_ok && g->cache_n == n && g->cache_rebuilds == p->stats.rebuilds;
+        if (scanned)
             nc = psys__pair_grid_moved(p, x, n);
         if (nc <= n / 8) {
             m1 = g->disp[0];
@@ -1440,7 +1441,7 @@ bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
             /* nothing moved, or no pair can have closed the skin */
             g->disp_now[0] = m1;
             g->disp_now[1] = m2;
-            g->moved_ready = nc <= n / 8;
+            g->moved_ready = scanned; /* the evaluation need not look again, even for "too many" */
             g->moved_n = nc;
             return true;
         }
