@@ -610,8 +610,7 @@ bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x
         lo2 = z < lo2 ? z : lo2;
         hi2 = z > hi2 ? z : hi2;
     }
-    /* the caller sets xq_cached once x is the cache's (force_pair.c) */
-    g->xq_cached = false;
+    /* (xq_cached: set by the caller, grid_eval, once x is the cache's) */
     g->xq_lo[0] = lo0, g->xq_lo[1] = lo1, g->xq_lo[2] = lo2;
     g->xq_hi[0] = hi0, g->xq_hi[1] = hi1, g->xq_hi[2] = hi2;
     bool in_box = m->on;
