@@ -21,12 +21,14 @@ static void plan_free(springs *s)
     free(s->run_off);
     free(s->run_len);
     free(s->run_k);
+    free(s->run_uni);
     free(s->pks);
     free(s->pkd);
     free(s->prest);
     free(s->pos);
     s->run_lo = s->run_off = s->run_len = NULL;
     s->run_k = s->pos = NULL;
+    s->run_uni = NULL;
     s->pks = s->pkd = s->prest = NULL;
     s->nruns = 0;
     s->plan_ok = false;
@@ -257,7 +259,10 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
             if (a0 >= a1 && b0 >= b1)
                 continue;
         }
-        run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, d);
+        if (s->run_uni[r])
+            run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, true, d);
+        else
+            run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, false, d);
         for (int c = 0; c < d; c++) {
             double *restrict fa = Fs + c * cap + lo, *restrict fb = Fs + c * cap + hi;
             const double *restrict Fc = F + c * SPRING_BLOCK;
@@ -383,11 +388,13 @@ static psys_status springs_plan(springs *s)
     p.run_off = psys__calloc(cap, sizeof *p.run_off);
     p.run_len = psys__calloc(cap, sizeof *p.run_len);
     p.run_k = psys__calloc(cap, sizeof *p.run_k);
+    p.run_uni = psys__calloc(cap, sizeof *p.run_uni);
     p.pks = psys__calloc(cap, sizeof *p.pks);
     p.pkd = psys__calloc(cap, sizeof *p.pkd);
     p.prest = psys__calloc(cap, sizeof *p.prest);
     p.pos = psys__calloc(cap, sizeof *p.pos);
-    if (!it || !p.run_lo || !p.run_off || !p.run_len || !p.run_k || !p.pks || !p.pkd || !p.prest || !p.pos) {
+    if (!it || !p.run_lo || !p.run_off || !p.run_len || !p.run_k || !p.run_uni || !p.pks || !p.pkd || !p.prest
+        || !p.pos) {
         free(it);
         plan_free(&p);
         return PSYS_ERR_NOMEM;
@@ -408,7 +415,11 @@ static psys_status springs_plan(springs *s)
             p.run_off[nr] = off;
             p.run_len[nr] = 0;
             p.run_k[nr] = i;
+            p.run_uni[nr] = 1;
             nr++;
+        } else if (memcmp(&s->ks[k], &p.pks[p.run_k[nr - 1]], sizeof(double))
+                   || memcmp(&s->kd[k], &p.pkd[p.run_k[nr - 1]], sizeof(double))) {
+            p.run_uni[nr - 1] = 0; /* not all the run's springs share ks and kd */
         }
         p.run_len[nr - 1]++;
         if (off > p.max_off)
@@ -424,6 +435,7 @@ static psys_status springs_plan(springs *s)
     s->run_off = p.run_off;
     s->run_len = p.run_len;
     s->run_k = p.run_k;
+    s->run_uni = p.run_uni;
     s->pks = p.pks;
     s->pkd = p.pkd;
     s->prest = p.prest;

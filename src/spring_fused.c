@@ -251,8 +251,11 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
  * the window apart, and a piece is cut where either range wraps). */
 static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, const double *restrict ks,
                                     const double *restrict kd, const double *restrict rest, size_t len,
-                                    double *restrict Fk, const bool apart, const int d)
+                                    double *restrict Fk, const bool apart, const bool uni, const int d)
 {
+    /* uni: the run's springs share ks and kd, read once (two loads fewer
+     * per spring, the same values) */
+    const double ks0 = ks[0], kd0 = kd[0];
     const ptrdiff_t o = (ptrdiff_t)b - (ptrdiff_t)a;
     double *const r0 = rb + a;
     const double *x0 = r0, *x1 = r0 + S, *v0 = r0 + (size_t)d * S, *v1 = r0 + (size_t)(d + 1) * S;
@@ -264,7 +267,8 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
             const ptrdiff_t jb = (ptrdiff_t)j + o;
             double l0 = x0[j] - x0[jb], l1 = x1[j] - x1[jb];
             double d0 = v0[j] - v0[jb], d1 = v1[j] - v1[jb];
-            double mag = psys__spring_mag(ks[j], kd[j], rest[j], l0 * l0 + l1 * l1, d0 * l0 + d1 * l1);
+            double mag = psys__spring_mag(uni ? ks0 : ks[j], uni ? kd0 : kd[j], rest[j], l0 * l0 + l1 * l1,
+                                          d0 * l0 + d1 * l1);
             double g0 = mag * l0, g1 = mag * l1;
             f0[j] -= g0;
             f1[j] -= g1;
@@ -288,7 +292,7 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
         double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1;
         len2 = len2 + l2 * l2;
         dot = dot + d2 * l2;
-        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+        double mag = psys__spring_mag(uni ? ks0 : ks[j], uni ? kd0 : kd[j], rest[j], len2, dot);
         double g0 = mag * l0, g1 = mag * l1, g2 = mag * l2;
         f0[j] -= g0;
         f1[j] -= g1;
@@ -305,11 +309,21 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     }
 }
 
+/* run_pair_d with ks and kd read once where the run's springs share them. */
+static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd,
+                                  const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d)
+{
+    if (uni)
+        run_pair_d(rb, S, a, b, ks, kd, rest, len, Fk, apart, true, d);
+    else
+        run_pair_d(rb, S, a, b, ks, kd, rest, len, Fk, apart, false, d);
+}
+
 /* Springs [c, e) of the run (lo, off, plan slot k): both ends in the loop
  * (e - c ≤ off, so no particle is both a first and a second end here), cut
  * where either end's range wraps around the ring. */
 static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo, size_t hi, size_t k, size_t c,
-                                         size_t e, double *F, const int d)
+                                         size_t e, double *F, bool uni, const int d)
 {
     const springs *s = fz->s;
     const size_t W = fz->W, mask = fz->mask;
@@ -320,7 +334,7 @@ static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo,
             m = W - pa;
         if (W - pb < m)
             m = W - pb;
-        run_pair_d(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, true, d);
+        run_pair(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, uni, true, d);
         c += m;
     }
 }
@@ -371,9 +385,10 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
         LEAVE_TO(b)
         LOAD_TO(hi + len)
         const size_t off = hi - lo;
+        const bool uni = s->run_uni[r];
         if (off >= len) {
             /* the two ranges are apart: both ends in one loop */
-            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, d);
+            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d);
             continue;
         }
         if (off >= FUSED_CHUNK_MIN) {
@@ -385,7 +400,7 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
              * then all second ends). */
             for (size_t e = len; e > 0;) {
                 const size_t c = e > off ? e - off : 0;
-                run_piece_apart(fz, rb, lo, hi, k, c, e, F, d);
+                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d);
                 e = c;
             }
             continue;
@@ -400,7 +415,8 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
             if (cut[p] < cut[p + 1]) {
                 const size_t j0 = cut[p];
                 const size_t pa = (lo + j0) & mask, pb = (hi + j0) & mask, m = cut[p + 1] - j0;
-                run_pair_d(rb, S, pa, pb, s->pks + k + j0, s->pkd + k + j0, s->prest + k + j0, m, F + j0, false, d);
+                run_pair(rb, S, pa, pb, s->pks + k + j0, s->pkd + k + j0, s->prest + k + j0, m, F + j0, uni, false,
+                         d);
             }
         for (int c = 0; c < d; c++) {
             double *restrict Fr = rb + (size_t)(2 * d + c) * S;

@@ -41,6 +41,7 @@ typedef struct springs {
     size_t nruns;
     uint32_t *run_lo, *run_off, *run_len; /* run r: springs (lo + j, lo + off + j), j < len */
     size_t *run_k;                        /* first plan slot of run r */
+    uint8_t *run_uni;                     /* run r's springs share ks and kd, bit for bit (read once) */
     double *pks, *pkd, *prest;            /* parameters in plan order */
     size_t *pos;                          /* plan slot of spring k */
     size_t max_off;                       /* largest run_off */
@@ -93,8 +94,10 @@ void psys__springs_partition(springs *s, size_t np, int T);
  * A spring of zero length has no direction and exerts no force. */
 static inline void run_forces_d(const double *restrict X, const double *restrict V, size_t cap, size_t lo,
                                 size_t hi, const double *restrict ks, const double *restrict kd,
-                                const double *restrict rest, size_t len, double *restrict F, const int d)
+                                const double *restrict rest, size_t len, double *restrict F, const bool uni,
+                                const int d)
 {
+    const double ks0 = ks[0], kd0 = kd[0];
     const double *restrict xa0 = X + lo, *restrict xb0 = X + hi, *restrict va0 = V + lo, *restrict vb0 = V + hi;
     const double *restrict xa1 = X + cap + lo, *restrict xb1 = X + cap + hi;
     const double *restrict va1 = V + cap + lo, *restrict vb1 = V + cap + hi;
@@ -111,7 +114,7 @@ static inline void run_forces_d(const double *restrict X, const double *restrict
             len2 = len2 + l2 * l2;
             dot = dot + d2 * l2;
         }
-        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+        double mag = psys__spring_mag(uni ? ks0 : ks[j], uni ? kd0 : kd[j], rest[j], len2, dot);
         F0[j] = mag * l0;
         F1[j] = mag * l1;
         if (d == 3)
