@@ -90,7 +90,9 @@ void psys__springs_partition(springs *s, size_t np, int T);
 /* Forces of run springs j < len into F (component-major: F[c·SPRING_BLOCK + j]):
  *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
  * X, V: the SoA position and velocity components (stride cap), lo and hi
- * the runs' first particles at the two ends.
+ * the runs' first particles at the two ends. uni: every spring takes ks[0]
+ * and kd[0] (the run's springs share them; one load instead of one per
+ * spring, the same values).
  * A spring of zero length has no direction and exerts no force. */
 static inline void run_forces_d(const double *restrict X, const double *restrict V, size_t cap, size_t lo,
                                 size_t hi, const double *restrict ks, const double *restrict kd,
