@@ -80,57 +80,60 @@ static void spring_force_eq1(void)
 static void spring_runs_shared_parameters(void)
 {
     enum { CHAINS = 5, LEN = 40, N = CHAINS * LEN };
-    psys_system *sys = make_system(3);
-    uint64_t seed = 99;
-    double x[N][3], v[N][3];
-    for (int i = 0; i < N; i++) {
-        for (int k = 0; k < 3; k++) {
-            seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
-            double u = (double)(seed >> 11) * (1.0 / 9007199254740992.0);
-            x[i][k] = (k == 0 ? 0.1 * (i % LEN) : 0) + 0.03 * u;
-            v[i][k] = u - 0.5;
+    for (int dim = 2; dim <= 3; dim++) { /* the run loops have a copy for each */
+        psys_system *sys = make_system(dim);
+        uint64_t seed = 99;
+        double x[N][3] = {{0}}, v[N][3] = {{0}};
+        for (int i = 0; i < N; i++) {
+            for (int k = 0; k < dim; k++) {
+                seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+                double u = (double)(seed >> 11) * (1.0 / 9007199254740992.0);
+                x[i][k] = (k == 0 ? 0.1 * (i % LEN) : 0) + 0.03 * u;
+                v[i][k] = u - 0.5;
+            }
+            add_particle(sys, x[i], v[i], 1.0);
         }
-        add_particle(sys, x[i], v[i], 1.0);
+        double ks[N], kd[N], rest[N];
+        int ns = 0, a[N], b[N];
+        for (int c = 0; c < CHAINS; c++)
+            for (int j = 0; j + 1 < LEN; j++, ns++) {
+                a[ns] = c * LEN + j;
+                b[ns] = a[ns] + 1;
+                ks[ns] = c == 0 || c == 2 || c == 3 ? 40 : 10 + j;          /* chain 0: ks shared, kd not */
+                kd[ns] = c == 1 || c == 2 || c == 3 ? 0.3 : 0.05 * (1 + j); /* chain 1: kd shared, ks not */
+                rest[ns] = 0.08 + 0.001 * j;                                /* chain 2: both shared */
+                if (c == 3 && j == 17)
+                    ks[ns] = 41; /* chain 3: all shared but one, mid-run */
+                if (c == 4 && j == 25)
+                    kd[ns] = 0.3; /* chain 4: neither shared */
+                CHECK(psys_system_add_spring(sys, (size_t)a[ns], (size_t)b[ns], ks[ns], kd[ns], rest[ns]) == PSYS_OK);
+            }
+        const double g[3] = {0, -1, 0};
+        CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
+        double want[N][3] = {{0}};
+        for (int i = 0; i < N; i++)
+            want[i][1] = -1;
+        for (int k = 0; k < ns; k++) {
+            double fa[3];
+            eq1_force(dim, x[a[k]], x[b[k]], v[a[k]], v[b[k]], ks[k], kd[k], rest[k], fa);
+            for (int c = 0; c < dim; c++) {
+                want[a[k]][c] += fa[c];
+                want[b[k]][c] -= fa[c];
+            }
+        }
+        static double f[3 * N], y[6 * N], ydot[6 * N];
+        CHECK(psys_system_compute_forces(sys, f) == PSYS_OK);
+        psys_ode o = psys_system_ode(sys);
+        o.get_state(o.ctx, y);
+        CHECK(o.derivative(o.ctx, 0, y, ydot) == PSYS_OK);
+        for (int i = 0; i < N; i++)
+            for (int c = 0; c < dim; c++) {
+                const double tol = 1e-12 * (1 + fabs(want[i][c]));
+                CHECK_NEAR(f[dim * i + c], want[i][c], tol);
+                CHECK_NEAR(ydot[dim * N + dim * i + c], want[i][c], tol); /* mass 1 */
+            }
+        psys_system_destroy(sys);
     }
-    double ks[N], kd[N], rest[N];
-    int ns = 0, a[N], b[N];
-    for (int c = 0; c < CHAINS; c++)
-        for (int j = 0; j + 1 < LEN; j++, ns++) {
-            a[ns] = c * LEN + j;
-            b[ns] = a[ns] + 1;
-            ks[ns] = c == 0 || c == 2 || c == 3 ? 40 : 10 + j; /* chain 0: ks shared, kd not */
-            kd[ns] = c == 1 || c == 2 || c == 3 ? 0.3 : 0.05 * (1 + j); /* chain 1: kd shared, ks not */
-            rest[ns] = 0.08 + 0.001 * j; /* chain 2: both shared */
-            if (c == 3 && j == 17)
-                ks[ns] = 41; /* chain 3: all shared but one, mid-run */
-            if (c == 4 && j == 25)
-                kd[ns] = 0.3; /* chain 4: neither shared */
-            CHECK(psys_system_add_spring(sys, (size_t)a[ns], (size_t)b[ns], ks[ns], kd[ns], rest[ns]) == PSYS_OK);
-        }
-    const double g[3] = {0, -1, 0};
-    CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
-    double want[N][3] = {{0}};
-    for (int i = 0; i < N; i++)
-        want[i][1] = -1;
-    for (int k = 0; k < ns; k++) {
-        double fa[3];
-        eq1_force(3, x[a[k]], x[b[k]], v[a[k]], v[b[k]], ks[k], kd[k], rest[k], fa);
-        for (int c = 0; c < 3; c++) {
-            want[a[k]][c] += fa[c];
-            want[b[k]][c] -= fa[c];
-        }
-    }
-    static double f[3 * N], y[6 * N], ydot[6 * N];
-    CHECK(psys_system_compute_forces(sys, f) == PSYS_OK);
-    psys_ode o = psys_system_ode(sys);
-    o.get_state(o.ctx, y);
-    CHECK(o.derivative(o.ctx, 0, y, ydot) == PSYS_OK);
-    for (int i = 0; i < N; i++)
-        for (int c = 0; c < 3; c++) {
-            CHECK_NEAR(f[3 * i + c], want[i][c], 1e-12 * (1 + fabs(want[i][c])));
-            CHECK_NEAR(ydot[3 * N + 3 * i + c], want[i][c], 1e-12 * (1 + fabs(want[i][c]))); /* mass 1 */
-        }
-    psys_system_destroy(sys);
 }
 
 /* Eq. 1 damps only along l: at rest length, a relative velocity normal to
