@@ -500,10 +500,43 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         if (nc == 0) {
             compute = false;
         } else if (nc <= n / 8) {
-            /* mark: bit 1 moved, bit 0 recompute (the moved and their partners) */
-            for (size_t t = 0; t < nc; t++)
-                g->mark[g->changed[t]] = 3;
-            if (g->half) {
+            /* mark: bit 1 moved, bit 0 recompute (the moved and their
+             * partners; without a domain, only the rows whose terms change) */
+            if (g->half || own)
+                for (size_t t = 0; t < nc; t++)
+                    g->mark[g->changed[t]] = 3;
+            if (!g->half && !own) {
+                /* A row's force is its terms g(r²)·Δ summed in list order,
+                 * with Δ = x_i - x_j under the minimum image: a row none of
+                 * whose Δ changed in any bit keeps its cached force. A
+                 * particle wrapped into the box moves by one box length, and
+                 * its Δ to the partners it left behind the face are often
+                 * the same bits (the new difference is exact where the old
+                 * one was), so neither they nor it need recomputing. pair_delta
+                 * is odd, so Δ_cj = -Δ_jc, bit for bit, and one test covers
+                 * the pair's two rows. */
+                const double *xo = g->xcache;
+                for (size_t t = 0; t < nc; t++) {
+                    const uint32_t c = g->changed[t];
+                    const double *xc = x + (size_t)c * d, *oc = xo + (size_t)c * d;
+                    bool any = false;
+                    for (uint32_t q = 0; q < g->nb_num[c]; q++) {
+                        const uint32_t j = g->nb[g->nb_start[c] + q];
+                        bool same = true;
+                        for (int k = 0; k < d; k++) {
+                            const double a = pair_delta(m, k, x[(size_t)j * d + k] - xc[k]);
+                            const double b = pair_delta(m, k, xo[(size_t)j * d + k] - oc[k]);
+                            same = same && memcmp(&a, &b, sizeof a) == 0;
+                        }
+                        if (!same) {
+                            g->mark[j] |= 1;
+                            any = true;
+                        }
+                    }
+                    if (any)
+                        g->mark[c] |= 1;
+                }
+            } else if (g->half) {
                 for (size_t i = 0; i < n; i++)
                     for (uint32_t q = 0; q < g->nb_num[i]; q++) {
                         uint32_t j = g->nb[g->nb_start[i] + q];
