@@ -156,14 +156,26 @@ psys_status psys__solver_rebind(psys_solver *s, const psys_ode *ode)
     return PSYS_OK;
 }
 
-psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)
+/* Project y at t, then fn(t, y) into ydot (derivative or acceleration). */
+static psys_status eval_by(psys_solver *s, psys_status (*fn)(void *, double, const double *, double *), double t,
+                           double *y, double *ydot)
 {
     if (s->ode.project)
         s->ode.project(s->ode.ctx, t, y);
-    psys_status st = s->ode.derivative(s->ode.ctx, t, y, ydot);
+    psys_status st = fn(s->ode.ctx, t, y, ydot);
     if (st != PSYS_OK)
         return psys__fail(&s->err, st, "the derivative evaluation failed at t = %.17g", t);
     return PSYS_OK;
+}
+
+psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)
+{
+    return eval_by(s, s->ode.derivative, t, y, ydot);
+}
+
+psys_status psys__solver_eval_accel(psys_solver *s, double t, double *y, double *ydot)
+{
+    return eval_by(s, s->ode.acceleration ? s->ode.acceleration : s->ode.derivative, t, y, ydot);
 }
 
 int psys__solver_threads(const psys_solver *s)

@@ -64,5 +64,9 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);
 psys_status psys__solver_rebind(psys_solver *s, const psys_ode *ode);
 /** Evaluate the derivative at (t, y) after projecting prescribed components. */
 psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot);
+/** psys__solver_eval for solvers of second-order systems: through
+ *  ode.acceleration where there is one, so only ydot[npos..size) is sure
+ *  to be written. */
+psys_status psys__solver_eval_accel(psys_solver *s, double t, double *y, double *ydot);
 
 #endif

@@ -470,8 +470,9 @@ static double ode_get_time(void *ctx) { return ((const psys_system *)ctx)->t; }
 static void ode_set_time(void *ctx, double t) { ((psys_system *)ctx)->t = t; }
 
 /* Notes' ParticleDerivative with each particle's own mass (ERRATA):
- * [x' | v'] = [v | f/m]; fixed particles have inv_mass 0 and v 0. */
-static psys_status ode_derivative(void *ctx, double t, const double *y, double *ydot)
+ * [x' | v'] = [v | f/m]; fixed particles have inv_mass 0 and v 0. Without
+ * with_v the first half is left as it was, unless the fused sweep runs. */
+static psys_status derivative_into(void *ctx, double t, const double *y, double *ydot, bool with_v)
 {
     psys_system *s = ctx;
     size_t d = (size_t)s->dim, nd = s->n * d;
@@ -487,7 +488,7 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     if (accumulate(s, &e, s->f) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_INVALID, "MPI exchange of the forces failed");
     const int nt = e.threads;
-    if (nd)
+    if (nd && with_v)
         par_copy(nt, ydot, y + nd, nd);
     double *restrict a = ydot + nd;
     const double *restrict f = s->f, *restrict im = s->inv_mass;
@@ -511,6 +512,36 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
         }
     }
     return PSYS_OK;
+}
+
+static psys_status ode_derivative(void *ctx, double t, const double *y, double *ydot)
+{
+    return derivative_into(ctx, t, y, ydot, true);
+}
+
+/* The accelerations only (psys_ode.acceleration): the derivative less its
+ * copy of v into ydot's first half, where the fused sweep does not take
+ * the system (it writes both halves anyway). */
+static psys_status ode_acceleration(void *ctx, double t, const double *y, double *ydot)
+{
+    return derivative_into(ctx, t, y, ydot, false);
+}
+
+/* Whether no force reads the velocities (psys_ode.velocity_free): only
+ * pair forces (functions of the distances, user laws included) and uniform
+ * gravity, and no planes (contact and friction) or controlled particles
+ * (whose prescribed velocities the solver's projection writes). */
+static bool ode_velocity_free(void *ctx)
+{
+    const psys_system *s = ctx;
+    if (s->nplanes || s->nctrl)
+        return false;
+    for (size_t i = 0; i < s->nforces; i++) {
+        const psys_force_class *c = s->forces[i].cls;
+        if (c != &psys_pair_class && c != &psys_pair_user_class && c != &psys_gravity_class)
+            return false;
+    }
+    return true;
 }
 
 /* The derivative with the solver's stage work applied as it is computed:
@@ -562,6 +593,8 @@ psys_ode psys_system_ode(psys_system *s)
     o.set_time = ode_set_time;
     o.derivative = ode_derivative;
     o.derivative_stage = ode_derivative_stage;
+    o.acceleration = ode_acceleration;
+    o.velocity_free = ode_velocity_free;
     o.project = ode_project;
     o.mass = ode_mass;
     o.jacobian = ode_jacobian;

@@ -398,6 +398,8 @@ static psys_ode counted_ode(counted *c, psys_system *sys)
     o.derivative = w_deriv;
     o.project = c->inner.project ? w_project : NULL;
     o.derivative_stage = NULL; /* it would bypass w_deriv's count (and take the system as ctx) */
+    o.acceleration = NULL;     /* likewise */
+    o.velocity_free = NULL;    /* (it takes the system as ctx) */
     return o;
 }
 
@@ -843,6 +845,88 @@ static double bits_to_double(uint64_t u)
     return v;
 }
 
+/* System k of verlet_fast_paths: 27 particles in a periodic box with a
+ * Lennard-Jones grid, plus per kind: 0 nothing, 1 gravity (both velocity
+ * free), 2 drag, 3 damped springs, 4 a plane, 5 a controlled particle,
+ * 6 undamped springs (all read or set velocities, or may). */
+static psys_system *fast_path_system(int kind)
+{
+    psys_system *sys = make_system(3);
+    const double lo[3] = {0, 0, 0}, hi[3] = {3.3, 3.3, 3.3};
+    const bool per[3] = {true, true, true};
+    CHECK(psys_system_set_box(sys, lo, hi, per) == PSYS_OK);
+    urand_seed(7);
+    for (int i = 0; i < 27; i++) {
+        double x[3] = {(i % 3) * 1.1 + urand(0, 0.1), (i / 3 % 3) * 1.1 + urand(0, 0.1), (i / 9) * 1.1 + 0.02};
+        double v[3] = {urand(-2, 2), urand(-2, 2), urand(-2, 2)};
+        add_particle(sys, x, v, 1.0 + 0.01 * i);
+    }
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = 0.9;
+    def.cutoff = 1.6;
+    def.skin = 0.2;
+    def.method = PSYS_PAIR_GRID;
+    CHECK(psys_system_add_pair(sys, &def, NULL) == PSYS_OK);
+    const double g[3] = {0, -0.5, 0};
+    if (kind == 1)
+        CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
+    if (kind == 2)
+        CHECK(psys_system_add_drag(sys, 0.3) == PSYS_OK);
+    if (kind == 3 || kind == 6)
+        for (size_t i = 0; i + 1 < 27; i += 2)
+            CHECK(psys_system_add_spring(sys, i, i + 1, 20.0, kind == 3 ? 0.5 : 0.0, -1) == PSYS_OK);
+    if (kind == 4) {
+        psys_plane_def pl = psys_plane_def_default();
+        pl.point[1] = 0.01;
+        pl.friction = 0.4;
+        CHECK(psys_system_add_plane(sys, &pl) == PSYS_OK);
+        CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
+    }
+    if (kind == 5) {
+        const double c[3] = {1.6, 1.6, 1.6};
+        CHECK(psys_system_control_circle(sys, 13, c, 0.3, 2.0, 0.0, NULL) == PSYS_OK);
+    }
+    return sys;
+}
+
+/* psys_system_ode's acceleration and velocity_free: symplectic-euler and
+ * verlet give the same bits with them as through derivative alone (an ODE
+ * without them), and velocity_free holds exactly for systems whose forces
+ * ignore the velocities; a velocity_free that held with drag, damping,
+ * planes or controlled particles would make verlet's second evaluation
+ * see v½ instead of the predicted velocity, and differ. */
+static void verlet_fast_paths(void)
+{
+    for (int kind = 0; kind <= 6; kind++)
+        for (int which = 0; which < 2; which++) {
+            const char *name = which ? "symplectic-euler" : "verlet";
+            psys_system *a = fast_path_system(kind), *b = fast_path_system(kind);
+            psys_ode oa = psys_system_ode(a), ob = psys_system_ode(b);
+            CHECK(oa.acceleration != NULL && oa.velocity_free != NULL);
+            CHECK(oa.velocity_free(oa.ctx) == (kind <= 1));
+            ob.acceleration = NULL;
+            ob.velocity_free = NULL;
+            psys_solver *sa = make_ode_solver(name, &oa), *sb = make_ode_solver(name, &ob);
+            for (int step = 0; step < 60; step++) {
+                CHECK(psys_system_advance(a, sa, 0.004, NULL) == PSYS_OK);
+                CHECK(psys_system_advance(b, sb, 0.004, NULL) == PSYS_OK);
+            }
+            CHECK(memcmp(psys_system_positions(a), psys_system_positions(b), 27 * 3 * sizeof(double)) == 0);
+            CHECK(memcmp(psys_system_velocities(a), psys_system_velocities(b), 27 * 3 * sizeof(double)) == 0);
+            /* the accelerations themselves: derivative's second half */
+            double y[162], d1[162], d2[162];
+            oa.get_state(oa.ctx, y);
+            CHECK(oa.derivative(oa.ctx, 0.24, y, d1) == PSYS_OK);
+            CHECK(oa.acceleration(oa.ctx, 0.24, y, d2) == PSYS_OK);
+            CHECK(memcmp(d1 + 81, d2 + 81, 81 * sizeof(double)) == 0);
+            psys_solver_destroy(sa);
+            psys_solver_destroy(sb);
+            psys_system_destroy(a);
+            psys_system_destroy(b);
+        }
+}
+
 static void nonfinite_kinds(void)
 {
     const size_t n = 100000;
@@ -889,6 +973,7 @@ static const check_case cases[] = {
     {"solver_threads_same_bits", solver_threads_same_bits},
     {"nonfinite_index_threads", nonfinite_index_threads},
     {"nonfinite_kinds", nonfinite_kinds},
+    {"verlet_fast_paths", verlet_fast_paths},
     {"symplectic_needs_second_order", symplectic_needs_second_order},
     {"custom_ode_decay", custom_ode_decay},
     {"custom_ode_symplectic", custom_ode_symplectic},

@@ -109,6 +109,20 @@ typedef struct psys_ode {
      *  belongs with ctx and derivative: an ODE that wraps another (its own
      *  ctx or derivative) must set it to NULL or to its own. */
     psys_status (*derivative_stage)(void *ctx, double t, const double *y, const psys_stage_pass *pass);
+    /** Optional (may be NULL), for second-order systems: derivative with only
+     *  its second half required, the accelerations ydot[npos..size);
+     *  ydot[0..npos), which derivative sets to the velocities, may be left as
+     *  it was. symplectic-euler and verlet call it instead of derivative. Like
+     *  derivative_stage it belongs with ctx and derivative: an ODE that wraps
+     *  another must set it to NULL or to its own. */
+    psys_status (*acceleration)(void *ctx, double t, const double *y, double *ydot);
+    /** Optional (may be NULL, taken as false): true when the accelerations do
+     *  not depend on the velocities (no damping, drag, contact or other
+     *  velocity-dependent force) until the state or the forces change. verlet
+     *  then evaluates its second stage at the half-step velocities instead of
+     *  forming a state with predicted ones: the same results, one state
+     *  vector fewer to write. Belongs with ctx and derivative, as above. */
+    bool (*velocity_free)(void *ctx);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
