@@ -118,10 +118,11 @@ typedef struct psys_ode {
     psys_status (*acceleration)(void *ctx, double t, const double *y, double *ydot);
     /** Optional (may be NULL, taken as false): true when the accelerations do
      *  not depend on the velocities (no damping, drag, contact or other
-     *  velocity-dependent force) until the state or the forces change. verlet
-     *  then evaluates its second stage at the half-step velocities instead of
-     *  forming a state with predicted ones: the same results, one state
-     *  vector fewer to write. Belongs with ctx and derivative, as above. */
+     *  velocity-dependent force); asked at every step, so the answer may
+     *  change as forces are added. verlet then evaluates its second stage at
+     *  the half-step velocities instead of forming a state with predicted
+     *  ones: the same results, one state vector fewer to write. Belongs with
+     *  ctx and derivative, as above. */
     bool (*velocity_free)(void *ctx);
 } psys_ode;
 
