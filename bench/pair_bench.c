@@ -25,8 +25,9 @@
  *       shorter runs look cheaper), sizes above N skipped. One line per
  *       run, case "grid-<n>" with lj-melt's fields (atoms = n,
  *       ns_per_atom_step = grid cost per particle-step); sizes up to 10,976
- *       atoms run 9 times, 32,000 5 times, 108,000 3 times, larger ones
- *       once, and the median of a size's runs counts. Then a
+ *       atoms run 9 times, 32,000 5 times, larger ones 3 times (one run
+ *       of the largest alone can move the sweep by a fifth on a busy
+ *       host), and the median of a size's runs counts. Then a
  *       "grid-scaling-summary" line: min and max of those medians over the
  *       sizes, the sizes where they occur and max/min.
  *   pair_bench barnes-hut [--n N] [--threads T]
@@ -263,7 +264,7 @@ static int grid_scaling(int threads, int steps, size_t max_n)
         snprintf(label, sizeof label, "grid-%zu", n);
         /* small systems run a few times (a run of 864 atoms lasts about 10 ms,
          * within reach of the host's hiccups): the median counts */
-        const int reps = n <= 11000 ? 9 : n <= 32000 ? 5 : n <= 108000 ? 3 : 1;
+        const int reps = n <= 11000 ? 9 : n <= 32000 ? 5 : 3;
         if (run_lj(cells[c], steps, threads, reps, label, &ns))
             return 1;
         if (sizes == 0 || ns < lo) {
