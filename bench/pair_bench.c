@@ -8,7 +8,8 @@
  *       0.3, uniform random velocities for temperature 1.44 (zero momentum;
  *       LAMMPS's "velocity create" default distribution), velocity
  *       Verlet at dt = 0.005, S steps (100). Reports ns per atom-step of the
- *       stepping loop (setup excluded), neighbour-list builds and the
+ *       stepping loop (setup excluded), neighbour-list builds, partial
+ *       evaluations and the rows each recomputed on average, and the
  *       relative energy change.
  *   pair_bench lj-eval [--cells C] [--threads T] [--steps E] [--reps R]
  *       The two parts of a step, apart: lj-melt's liquid after 100 steps,
@@ -167,10 +168,11 @@ static int run_lj(int cells, int steps, int threads, int reps, const char *label
         psys_system_pair_stats(sys, fi, &st);
         printf("{\"case\":\"%s\",\"atoms\":%zu,\"steps\":%d,\"threads\":%d,\"effective_threads\":%d,\"seconds\":%.4f,"
                "\"ns_per_atom_step\":%.1f,\"force_evaluations\":%zu,\"ns_per_atom_evaluation\":%.1f,"
-               "\"list_builds\":%zu,\"partial_evaluations\":%zu,\"pairs_per_atom\":%.2f,\"energy_per_atom_start\":%.6f,"
+               "\"list_builds\":%zu,\"partial_evaluations\":%zu,\"rows_per_partial\":%.1f,\"pairs_per_atom\":%.2f,\"energy_per_atom_start\":%.6f,"
                "\"relative_energy_change\":%.3g}\n",
                label, n, steps, threads, psys_system_effective_threads(sys), el, el * 1e9 / ((double)n * steps),
                st.evaluations, el * 1e9 / ((double)n * (double)(st.evaluations - 2)), st.rebuilds, st.partial,
+               st.partial ? (double)st.partial_rows / (double)st.partial : 0.0,
                (double)st.pairs / (double)n, e0 / (double)n, (e1 - e0) / fabs(e0));
         fflush(stdout);
         runs[r] = el * 1e9 / ((double)n * steps);

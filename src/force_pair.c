@@ -561,6 +561,10 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
                     g->mark[i] = own[i] ? g->mark[i] : 0;
             mark = g->mark;
             p->stats.partial++;
+            size_t rows = 0;
+            for (size_t i = 0; i < n; i++)
+                rows += g->mark[i] != 0;
+            p->stats.partial_rows += rows;
         }
     }
     /* own (MPI domain decomposition, mpi_domain.c): only the owned rows, a

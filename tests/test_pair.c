@@ -682,6 +682,52 @@ static void grid_partial_matches_direct(void)
     }
 }
 
+/* A particle taken through a face by exactly one box length, as the wrap
+ * after a step does: in the box [0, 2) its differences to the partners it
+ * leaves behind the face keep their bits (their coordinates lie in [1, 2),
+ * its own at 2.003 and 2.003 − 2 on the grid of 2⁻⁵¹, so both differences
+ * are exact), so a partial evaluation recomputes it and its partners across
+ * the face but not those: fewer rows than its neighbourhood, and still
+ * direct's forces bit for bit. */
+static void grid_partial_keeps_unchanged_rows(void)
+{
+    psys_system *a = lattice_with_pair(PSYS_PAIR_LENNARD_JONES, PSYS_PAIR_GRID, 1);
+    psys_system *b = lattice_with_pair(PSYS_PAIR_LENNARD_JONES, PSYS_PAIR_DIRECT, 1);
+    const size_t c = 9 + 10 * 5 + 100 * 5, n = psys_system_count(a); /* x ≈ 1.8, y and z ≈ 1 */
+    double x[3];
+    memcpy(x, psys_system_positions(a) + 3 * c, sizeof x);
+    x[0] = 2.003; /* just past the face */
+    CHECK(psys_system_set_particle(a, c, x, NULL) == PSYS_OK && psys_system_set_particle(b, c, x, NULL) == PSYS_OK);
+    check_same_forces(a, b);
+    psys_pair_stats s0, s1;
+    CHECK(psys_system_pair_stats(a, 0, &s0) == PSYS_OK);
+    x[0] = 2.003 - 2.0; /* wrapped, exactly */
+    CHECK(x[0] + 2.0 == 2.003);
+    CHECK(psys_system_set_particle(a, c, x, NULL) == PSYS_OK && psys_system_set_particle(b, c, x, NULL) == PSYS_OK);
+    check_same_forces(a, b);
+    CHECK(psys_system_pair_stats(a, 0, &s1) == PSYS_OK);
+    CHECK(s1.partial == s0.partial + 1 && s1.rebuilds == s0.rebuilds);
+    /* its neighbourhood (within the list radius 0.35, minimum image) on
+     * either side of the face */
+    size_t behind = 0, across = 0;
+    const double *p = psys_system_positions(a);
+    for (size_t j = 0; j < n; j++) {
+        double r2 = 0;
+        for (int k = 0; k < 3; k++) {
+            double dx = p[3 * j + k] - p[3 * c + k];
+            dx -= 2.0 * nearbyint(dx / 2.0);
+            r2 += dx * dx;
+        }
+        if (j != c && r2 < 0.35 * 0.35)
+            *(p[3 * j] > 1.0 ? &behind : &across) += 1;
+    }
+    const size_t rows = s1.partial_rows - s0.partial_rows;
+    CHECK(behind > 0 && across > 0);
+    CHECK(rows == across + 1);
+    psys_system_destroy(a);
+    psys_system_destroy(b);
+}
+
 /* Lists are rebuilt only when the two largest displacements since the last
  * build add up to the skin or more. */
 static void grid_rebuild_criterion(void)
@@ -1612,6 +1658,7 @@ static const check_case cases[] = {
     {"grid_rebuild_criterion", grid_rebuild_criterion},
     {"grid_cache_matches_direct", grid_cache_matches_direct},
     {"grid_partial_matches_direct", grid_partial_matches_direct},
+    {"grid_partial_keeps_unchanged_rows", grid_partial_keeps_unchanged_rows},
     {"minimum_image", minimum_image},
     {"minimum_image_far", minimum_image_far},
     {"minimum_image_far_groups", minimum_image_far_groups},

@@ -695,6 +695,7 @@ typedef struct psys_pair_stats {
     size_t partial;      /**< grid: force evaluations that recomputed only the particles near moved ones */
     size_t grouped;      /**< grid: force evaluations whose rows ran four or eight at a time (the AVX2 /
                               AVX-512 loops; 0 where they do not run) */
+    size_t partial_rows; /**< grid: particles' forces recomputed by the partial evaluations, in all */
 } psys_pair_stats;
 /** Counters of pair force object i. */
 psys_status psys_system_pair_stats(const psys_system *sys, size_t i, psys_pair_stats *stats);
