@@ -18,6 +18,14 @@
  *       force recomputed: "evaluation"), and E alternating with every
  *       coordinate 0.2 larger (a list build before each: "evaluation with a
  *       build"); ns per atom for both and their difference ("build").
+ *   pair_bench lj-threads [--cells C] [--steps S] [--threads T] [--reps R]
+ *       Thread scaling: lj-melt at C = 40 (256,000 atoms) by default, one
+ *       thread against T (2), R rounds (5) of one run each, the order of
+ *       the two swapped every round (a host that drifts slows both alike).
+ *       lj-melt's lines ("lj-threads-1", "lj-threads-T"), then an
+ *       "lj-threads-summary" line: each round's speed-up (time on one
+ *       thread over time on T), their median, and the ratio of the two
+ *       medians of ns per atom-step.
  *   pair_bench grid-scaling [--threads T] [--steps S] [--max-n N]
  *       The same liquid (lj-melt's set-up) at 6, 10, 14, 20, 30, 44 and 63
  *       cells per side: 864, 4,000, 10,976, 32,000, 108,000, 340,736 and
@@ -188,6 +196,39 @@ static int run_lj(int cells, int steps, int threads, int reps, const char *label
             }
         *ns_per_step = runs[reps / 2];
     }
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b);
+static double median(double *v, int n);
+
+/* lj-threads: one thread against `threads`, rounds interleaved. */
+static int lj_threads(int cells, int steps, int threads, int reps)
+{
+    if (reps > 64)
+        reps = 64;
+    if (reps < 1)
+        reps = 1;
+    double one[64], many[64], up[64];
+    char label[32];
+    snprintf(label, sizeof label, "lj-threads-%d", threads);
+    for (int r = 0; r < reps; r++) {
+        for (int k = 0; k < 2; k++) {
+            const bool single = (k == 0) == (r % 2 == 0);
+            if (run_lj(cells, steps, single ? 1 : threads, 1, single ? "lj-threads-1" : label,
+                       single ? &one[r] : &many[r]))
+                return 1;
+        }
+        up[r] = one[r] / many[r];
+    }
+    printf("{\"case\":\"lj-threads-summary\",\"atoms\":%d,\"threads\":%d,\"rounds\":%d,\"speedups\":[",
+           4 * cells * cells * cells, threads, reps);
+    for (int r = 0; r < reps; r++)
+        printf("%s%.3f", r ? "," : "", up[r]);
+    const double m1 = median(one, reps), mt = median(many, reps);
+    printf("],\"median_speedup\":%.3f,\"ns_per_atom_step_1\":%.1f,\"ns_per_atom_step_t\":%.1f,"
+           "\"speedup_of_medians\":%.3f}\n",
+           median(up, reps), m1, mt, m1 / mt);
     return 0;
 }
 
@@ -496,19 +537,24 @@ int main(int argc, char **argv)
     int cells = 20, steps = -1, threads = 1, reps = 1;
     size_t n = 20000, max_n = 0;
     double theta = 0.5;
+    bool cells_set = false, reps_set = false;
     for (int i = 2; i < argc; i += 2) {
         if (i + 1 >= argc) {
             fprintf(stderr, "pair_bench: option %s needs a value\n", argv[i]);
             return 2;
         }
-        if (strcmp(argv[i], "--cells") == 0)
+        if (strcmp(argv[i], "--cells") == 0) {
             cells = atoi(argv[i + 1]);
+            cells_set = true;
+        }
         else if (strcmp(argv[i], "--steps") == 0)
             steps = atoi(argv[i + 1]);
         else if (strcmp(argv[i], "--threads") == 0)
             threads = atoi(argv[i + 1]);
-        else if (strcmp(argv[i], "--reps") == 0)
+        else if (strcmp(argv[i], "--reps") == 0) {
             reps = atoi(argv[i + 1]);
+            reps_set = true;
+        }
         else if (strcmp(argv[i], "--n") == 0)
             n = (size_t)atol(argv[i + 1]);
         else if (strcmp(argv[i], "--max-n") == 0)
@@ -522,6 +568,9 @@ int main(int argc, char **argv)
     }
     if (strcmp(which, "lj-melt") == 0)
         return run_lj(cells, steps > 0 ? steps : 100, threads, reps, "lj-melt", NULL);
+    if (strcmp(which, "lj-threads") == 0)
+        return lj_threads(cells_set ? cells : 40, steps > 0 ? steps : 100, threads > 1 ? threads : 2,
+                          reps_set ? reps : 5);
     if (strcmp(which, "lj-eval") == 0)
         return lj_eval(cells, steps > 0 ? steps : 200, threads, reps);
     if (strcmp(which, "grid-scaling") == 0)
@@ -530,6 +579,6 @@ int main(int argc, char **argv)
         return barnes_hut(n, threads);
     if (strcmp(which, "bh-crossover") == 0)
         return bh_crossover(threads, theta, max_n ? max_n : 32768);
-    fprintf(stderr, "pair_bench: unknown case %s (lj-melt, lj-eval, grid-scaling, barnes-hut, bh-crossover)\n", which);
+    fprintf(stderr, "pair_bench: unknown case %s (lj-melt, lj-threads, lj-eval, grid-scaling, barnes-hut, bh-crossover)\n", which);
     return 2;
 }

@@ -1,0 +1,283 @@
+/* What the spring loop could cost at best on this machine (a program, not a
+ * test; bench/README.md, "Ceiling"). Not psys: a minimal cloth written for
+ * speed alone, to set psys's figures against.
+ *
+ *   spring_ceiling [N] [STEPS]
+ *
+ * Prints two JSON lines:
+ * - "divider": ns per correctly rounded square root and per division, at
+ *   the widest vector width the compiler uses here (each spring of psys
+ *   takes one of each: |l| and 1/|l|), measured on a 1,024-element array
+ *   in L1; and their sum times the spring evaluations of one rk4 step of the
+ *   N×N cloth (4 per spring), per particle: the divider floor.
+ * - "ideal-cloth": the N×N cloth (N = 100) of psys bench cloth-N with its
+ *   six kinds of springs (offsets 1, N, N+1, N-1, 2, 2N in row-major order),
+ *   the spring law of psys (eq. 1 with the same operations, shared ks, kd,
+ *   a rest length per spring), gravity and drag, stepped by rk4 in
+ *   structure-of-arrays form, eight particles at a time: a chunk's
+ *   forces stay in registers across its six springs, only the far ends'
+ *   forces go through memory; rows are not cut at the cloth's edges and no
+ *   particle is pinned (work psys must do is left out, none added). ns per
+ *   particle-step (STEPS steps, 1,000), split into the derivative and the
+ *   stage sums.
+ *
+ * Same compiler flags as the library (no FMA, no fast math). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define CLONES
+#endif
+
+#define CHUNK 8
+#define KINDS 6
+
+static double now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+CLONES static void sqrt_pass(const double *restrict x, double *restrict y, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        y[i] = sqrt(x[i]);
+}
+
+CLONES static void div_pass(const double *restrict x, double *restrict y, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        y[i] = 1.0 / x[i];
+}
+
+/* ns per element of pass over an L1-sized array, best of 5 batches. */
+static double per_element(void (*pass)(const double *restrict, double *restrict, size_t), double *x, double *y,
+                          size_t n)
+{
+    double best = 1e30;
+    for (int b = 0; b < 5; b++) {
+        const int reps = 20000;
+        const double t0 = now();
+        for (int r = 0; r < reps; r++) {
+            pass(x, y, n);
+            x[r % n] = y[(r * 7) % n] + 1.0; /* keeps the passes from being merged */
+        }
+        const double t = (now() - t0) * 1e9 / ((double)reps * (double)n);
+        best = t < best ? t : best;
+    }
+    return best;
+}
+
+typedef struct cloth {
+    size_t n, np, pad;
+    double *x[3], *v[3], *f[3], *base[6], *acc[6], *rest[KINDS];
+    size_t off[KINDS];
+} cloth;
+
+/* f of every particle: springs eight first ends at a time, then gravity and
+ * drag. The portable loop; derivative512 below is the same with AVX-512. */
+static void derivative_c(cloth *c)
+{
+    const double ks = 100.0, kd = 0.5, drag = 0.01, g = -9.81;
+    const size_t np = c->np;
+    double *const *F = c->f;
+    double *const *X = c->x, *const *V = c->v;
+    for (int q = 0; q < 3; q++)
+        memset(F[q], 0, (np + c->pad) * sizeof(double));
+    for (size_t p = 0; p < np; p += CHUNK) {
+        double a[3][CHUNK] = {{0}};
+        for (int k = 0; k < KINDS; k++) {
+            const size_t q = p + c->off[k];
+            for (int l = 0; l < CHUNK; l++) {
+                double e[3], dv[3];
+                for (int d = 0; d < 3; d++) {
+                    e[d] = X[d][p + l] - X[d][q + l];
+                    dv[d] = V[d][p + l] - V[d][q + l];
+                }
+                const double len2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+                const double dot = dv[0] * e[0] + dv[1] * e[1] + dv[2] * e[2];
+                const double L = sqrt(len2), inv = 1.0 / L;
+                const double m = (ks * (L - c->rest[k][p + l]) + kd * dot * inv) * inv, mag = len2 == 0 ? 0.0 : m;
+                for (int d = 0; d < 3; d++) {
+                    a[d][l] -= mag * e[d];
+                    F[d][q + l] += mag * e[d];
+                }
+            }
+        }
+        for (int d = 0; d < 3; d++)
+            for (int l = 0; l < CHUNK; l++)
+                F[d][p + l] = F[d][p + l] + a[d][l] + (d == 1 ? g : 0.0) - drag * V[d][p + l];
+    }
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define HAVE512 1
+__attribute__((target("avx512f"))) static void derivative512(cloth *c)
+{
+    const __m512d ks = _mm512_set1_pd(100.0), kd = _mm512_set1_pd(0.5), drag = _mm512_set1_pd(0.01),
+                  one = _mm512_set1_pd(1.0), zero = _mm512_setzero_pd();
+    const __m512d grav[3] = {zero, _mm512_set1_pd(-9.81), zero};
+    const size_t np = c->np;
+    double *const *F = c->f;
+    double *const *X = c->x, *const *V = c->v;
+    for (int q = 0; q < 3; q++)
+        memset(F[q], 0, (np + c->pad) * sizeof(double));
+    for (size_t p = 0; p < np; p += CHUNK) {
+        __m512d xa[3], va[3], a[3];
+        for (int d = 0; d < 3; d++) {
+            xa[d] = _mm512_loadu_pd(X[d] + p);
+            va[d] = _mm512_loadu_pd(V[d] + p);
+            a[d] = zero;
+        }
+        for (int k = 0; k < KINDS; k++) {
+            const size_t q = p + c->off[k];
+            __m512d e[3], dv[3];
+            for (int d = 0; d < 3; d++) {
+                e[d] = _mm512_sub_pd(xa[d], _mm512_loadu_pd(X[d] + q));
+                dv[d] = _mm512_sub_pd(va[d], _mm512_loadu_pd(V[d] + q));
+            }
+            const __m512d len2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(e[0], e[0]), _mm512_mul_pd(e[1], e[1])),
+                                               _mm512_mul_pd(e[2], e[2]));
+            const __m512d dot = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dv[0], e[0]), _mm512_mul_pd(dv[1], e[1])),
+                                              _mm512_mul_pd(dv[2], e[2]));
+            const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(one, L);
+            const __m512d m = _mm512_mul_pd(
+                _mm512_add_pd(_mm512_mul_pd(ks, _mm512_sub_pd(L, _mm512_loadu_pd(c->rest[k] + p))),
+                              _mm512_mul_pd(_mm512_mul_pd(kd, dot), inv)),
+                inv);
+            const __m512d mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, zero, _CMP_NEQ_OQ), m);
+            for (int d = 0; d < 3; d++) {
+                const __m512d gd = _mm512_mul_pd(mag, e[d]);
+                a[d] = _mm512_sub_pd(a[d], gd);
+                _mm512_storeu_pd(F[d] + q, _mm512_add_pd(_mm512_loadu_pd(F[d] + q), gd));
+            }
+        }
+        for (int d = 0; d < 3; d++) {
+            const __m512d f = _mm512_add_pd(_mm512_add_pd(_mm512_loadu_pd(F[d] + p), a[d]), grav[d]);
+            _mm512_storeu_pd(F[d] + p, _mm512_sub_pd(f, _mm512_mul_pd(drag, va[d])));
+        }
+    }
+}
+#endif
+
+/* One rk4 stage's sums (unit masses): next state base + h·a·k, acc += w·k
+ * (acc = w·k at the first stage). */
+CLONES static void stage(cloth *c, double ha, double w, int first)
+{
+    const size_t np = c->np;
+    for (int q = 0; q < 3; q++) {
+        double *restrict x = c->x[q], *restrict v = c->v[q];
+        const double *restrict f = c->f[q], *restrict bx = c->base[q], *restrict bv = c->base[3 + q];
+        double *restrict ax = c->acc[q], *restrict av = c->acc[3 + q];
+        for (size_t i = 0; i < np; i++) {
+            const double kx = v[i], kv = f[i];
+            ax[i] = (first ? 0.0 : ax[i]) + w * kx;
+            av[i] = (first ? 0.0 : av[i]) + w * kv;
+            x[i] = bx[i] + ha * kx;
+            v[i] = bv[i] + ha * kv;
+        }
+    }
+}
+
+static double *column(size_t m)
+{
+    double *p = aligned_alloc(64, ((m * sizeof(double) + 63) / 64) * 64);
+    if (!p) {
+        fprintf(stderr, "spring_ceiling: out of memory\n");
+        exit(1);
+    }
+    memset(p, 0, m * sizeof(double));
+    return p;
+}
+
+int main(int argc, char **argv)
+{
+    const size_t n = argc > 1 ? (size_t)atol(argv[1]) : 100;
+    const int steps = argc > 2 ? atoi(argv[2]) : 1000;
+    if (n < 3 || steps < 1) {
+        fprintf(stderr, "usage: spring_ceiling [N ≥ 3] [STEPS ≥ 1]\n");
+        return 2;
+    }
+    /* the divider */
+    const size_t m = 1024;
+    double *dx = column(m), *dy = column(m);
+    for (size_t i = 0; i < m; i++)
+        dx[i] = 0.5 + (double)i / (double)m;
+    const double t_sqrt = per_element(sqrt_pass, dx, dy, m), t_div = per_element(div_pass, dx, dy, m);
+    const double springs = 2.0 * (double)n * (double)(n - 1) + 2.0 * (double)(n - 1) * (double)(n - 1)
+                           + 2.0 * (double)n * (double)(n - 2);
+    const double per_particle = springs / ((double)n * (double)n);
+    printf("{\"case\":\"divider\",\"ns_per_sqrt\":%.3f,\"ns_per_division\":%.3f,\"cloth\":%zu,"
+           "\"springs_per_particle\":%.3f,\"floor_ns_per_particle_step\":%.2f}\n",
+           t_sqrt, t_div, n, per_particle, 4.0 * per_particle * (t_sqrt + t_div));
+    /* the cloth */
+    cloth c = {.n = n, .np = n * n, .pad = 2 * n + 2 * CHUNK};
+    const size_t cap = c.np + c.pad;
+    const size_t off[KINDS] = {1, n, n + 1, n - 1, 2, 2 * n};
+    const double h = 1e-4, s = 2.0 / (double)(n - 1);
+    for (int q = 0; q < 3; q++) {
+        c.x[q] = column(cap);
+        c.v[q] = column(cap);
+        c.f[q] = column(cap);
+    }
+    for (int q = 0; q < 6; q++) {
+        c.base[q] = column(cap);
+        c.acc[q] = column(cap);
+    }
+    for (size_t i = 0; i < cap; i++) {
+        c.x[0][i] = s * (double)(i % n);
+        c.x[2][i] = s * (double)(i / n);
+    }
+    for (int k = 0; k < KINDS; k++) {
+        c.off[k] = off[k];
+        c.rest[k] = column(cap);
+        for (size_t i = 0; i < cap; i++) {
+            const double e0 = c.x[0][i] - c.x[0][(i + off[k]) % cap], e2 = c.x[2][i] - c.x[2][(i + off[k]) % cap];
+            c.rest[k][i] = sqrt(e0 * e0 + e2 * e2);
+        }
+    }
+    const double a[4] = {0.5, 0.5, 1.0, 0.0}, w[4] = {1.0 / 6, 1.0 / 3, 1.0 / 3, 1.0 / 6};
+    void (*derivative)(cloth *) = derivative_c;
+    const char *width = "portable";
+#ifdef HAVE512
+    if (__builtin_cpu_supports("avx512f") && !getenv("CEILING_PORTABLE")) {
+        derivative = derivative512;
+        width = "avx512f";
+    }
+#endif
+    double t_der = 0, t_stage = 0;
+    for (int st = 0; st < steps; st++) {
+        for (int q = 0; q < 3; q++) {
+            memcpy(c.base[q], c.x[q], c.np * sizeof(double));
+            memcpy(c.base[3 + q], c.v[q], c.np * sizeof(double));
+        }
+        for (int k = 0; k < 4; k++) {
+            const double t0 = now();
+            derivative(&c);
+            const double t1 = now();
+            stage(&c, h * a[k], w[k], k == 0);
+            t_stage += now() - t1;
+            t_der += t1 - t0;
+        }
+        const double t2 = now();
+        for (int q = 0; q < 6; q++) {
+            double *restrict y = q < 3 ? c.x[q] : c.v[q - 3];
+            const double *restrict b = c.base[q], *restrict ac = c.acc[q];
+            for (size_t i = 0; i < c.np; i++)
+                y[i] = b[i] + h * ac[i];
+        }
+        t_stage += now() - t2;
+    }
+    const double per = 1e9 / ((double)steps * (double)c.np);
+    printf("{\"case\":\"ideal-cloth\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,\"derivative\":\"%s\","
+           "\"ns_per_particle_step\":%.2f,\"derivative_ns\":%.2f,\"stage_ns\":%.2f,\"check\":%.9g}\n",
+           n, c.np, steps, width, (t_der + t_stage) * per, t_der * per, t_stage * per, c.x[1][c.np / 2]);
+    return 0;
+}
