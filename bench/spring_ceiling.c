@@ -20,6 +20,10 @@
  *   particle is pinned (work psys must do is left out, none added). ns per
  *   particle-step (STEPS steps, 1,000), split into the derivative and the
  *   stage sums.
+ * - "ideal-cloth-fused" (AVX-512 hosts, N² a multiple of 8): the same cloth
+ *   with each stage's sums done in the spring loop, chunk by chunk, and the
+ *   short offsets' far ends kept in registers: one pass over memory per
+ *   stage. Its check (a middle particle's height) matches ideal-cloth's.
  *
  * Same compiler flags as the library (no FMA, no fast math). */
 #include <math.h>
@@ -165,6 +169,86 @@ __attribute__((target("avx512f"))) static void derivative512(cloth *c)
         }
     }
 }
+
+/* The same cloth with each rk4 stage's sums fused into the spring loop:
+ * a chunk's force is complete once its own springs are done (every spring
+ * goes from a lower to a higher index, and the higher ends of the long
+ * offsets were visited earlier), so the chunk's stage runs right there.
+ * The short offsets' (1, 2) far ends stay in registers too: their forces
+ * land on the chunk shifted by one or two lanes, the rest carried into the
+ * next chunk. One pass over memory per stage. State buffers: in (the
+ * stage's input), out (its output), base (the step's start), acc (the
+ * weighted sum); the last stage writes base + h·(acc + w·k) into out. */
+__attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *const *in, double *const *out,
+                                                               double *const *base, double *const *acc, double ha,
+                                                               double w, int which)
+{
+    const __m512d ks = _mm512_set1_pd(100.0), kd = _mm512_set1_pd(0.5), drag = _mm512_set1_pd(0.01),
+                  one = _mm512_set1_pd(1.0), zero = _mm512_setzero_pd();
+    const __m512d grav[3] = {zero, _mm512_set1_pd(-9.81), zero};
+    const __m512d H = _mm512_set1_pd(ha), W = _mm512_set1_pd(w);
+    const size_t np = c->np;
+    double *const *F = c->f;
+    __m512d prev1[3] = {zero, zero, zero}, prev2[3] = {zero, zero, zero};
+    for (size_t p = 0; p < np; p += CHUNK) {
+        __m512d xa[3], va[3], a[3];
+        for (int d = 0; d < 3; d++) {
+            xa[d] = _mm512_load_pd(in[d] + p);
+            va[d] = _mm512_load_pd(in[3 + d] + p);
+            a[d] = _mm512_load_pd(F[d] + p); /* the long offsets' far ends, from earlier chunks */
+            _mm512_store_pd(F[d] + p, zero);
+        }
+        for (int k = 0; k < KINDS; k++) {
+            const size_t q = p + c->off[k];
+            __m512d e[3], dv[3];
+            for (int d = 0; d < 3; d++) {
+                e[d] = _mm512_sub_pd(xa[d], _mm512_loadu_pd(in[d] + q));
+                dv[d] = _mm512_sub_pd(va[d], _mm512_loadu_pd(in[3 + d] + q));
+            }
+            const __m512d len2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(e[0], e[0]), _mm512_mul_pd(e[1], e[1])),
+                                               _mm512_mul_pd(e[2], e[2]));
+            const __m512d dot = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dv[0], e[0]), _mm512_mul_pd(dv[1], e[1])),
+                                              _mm512_mul_pd(dv[2], e[2]));
+            const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(one, L);
+            const __m512d m = _mm512_mul_pd(
+                _mm512_add_pd(_mm512_mul_pd(ks, _mm512_sub_pd(L, _mm512_loadu_pd(c->rest[k] + p))),
+                              _mm512_mul_pd(_mm512_mul_pd(kd, dot), inv)),
+                inv);
+            const __m512d mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, zero, _CMP_NEQ_OQ), m);
+            for (int d = 0; d < 3; d++) {
+                const __m512d gd = _mm512_mul_pd(mag, e[d]);
+                a[d] = _mm512_sub_pd(a[d], gd);
+                if (c->off[k] == 1) {
+                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
+                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev1[d]), 7)));
+                    prev1[d] = gd;
+                } else if (c->off[k] == 2) {
+                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
+                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev2[d]), 6)));
+                    prev2[d] = gd;
+                } else {
+                    _mm512_storeu_pd(F[d] + q, _mm512_add_pd(_mm512_loadu_pd(F[d] + q), gd));
+                }
+            }
+        }
+        for (int d = 0; d < 3; d++) {
+            const __m512d kx = va[d];
+            const __m512d kv = _mm512_sub_pd(_mm512_add_pd(a[d], grav[d]), _mm512_mul_pd(drag, va[d]));
+            const __m512d k2[2] = {kx, kv};
+            for (int h2 = 0; h2 < 2; h2++) {
+                const int r = 3 * h2 + d;
+                const __m512d b = _mm512_load_pd(base[r] + p), wk = _mm512_mul_pd(W, k2[h2]);
+                if (which == 3) {
+                    const __m512d s = _mm512_add_pd(_mm512_load_pd(acc[r] + p), wk);
+                    _mm512_store_pd(out[r] + p, _mm512_add_pd(b, _mm512_mul_pd(H, s)));
+                } else {
+                    _mm512_store_pd(out[r] + p, _mm512_add_pd(b, _mm512_mul_pd(H, k2[h2])));
+                    _mm512_store_pd(acc[r] + p, which == 0 ? wk : _mm512_add_pd(_mm512_load_pd(acc[r] + p), wk));
+                }
+            }
+        }
+    }
+}
 #endif
 
 /* One rk4 stage's sums (unit masses): next state base + h·a·k, acc += w·k
@@ -279,5 +363,34 @@ int main(int argc, char **argv)
     printf("{\"case\":\"ideal-cloth\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,\"derivative\":\"%s\","
            "\"ns_per_particle_step\":%.2f,\"derivative_ns\":%.2f,\"stage_ns\":%.2f,\"check\":%.9g}\n",
            n, c.np, steps, width, (t_der + t_stage) * per, t_der * per, t_stage * per, c.x[1][c.np / 2]);
+#ifdef HAVE512
+    if (__builtin_cpu_supports("avx512f") && c.np % CHUNK == 0) {
+        /* the fused variant from the same start: 3 state buffers of 6 rows */
+        double *buf[3][6];
+        for (int b = 0; b < 3; b++)
+            for (int q = 0; q < 6; q++) {
+                buf[b][q] = column(cap);
+                for (size_t i = 0; i < cap; i++)
+                    buf[b][q][i] = q == 0 ? s * (double)(i % n) : q == 2 ? s * (double)(i / n) : 0.0;
+            }
+        for (int q = 0; q < 3; q++)
+            memset(c.f[q], 0, cap * sizeof(double));
+        double **st = buf[0], **s1 = buf[1], **s2 = buf[2];
+        const double t0 = now();
+        for (int t = 0; t < steps; t++) {
+            fused_stage512(&c, st, s1, st, c.acc, h * a[0], w[0], 0);
+            fused_stage512(&c, s1, s2, st, c.acc, h * a[1], w[1], 1);
+            fused_stage512(&c, s2, s1, st, c.acc, h * a[2], w[2], 2);
+            fused_stage512(&c, s1, s2, st, c.acc, h, w[3], 3);
+            double **tmp = st;
+            st = s2;
+            s2 = tmp;
+        }
+        const double t = now() - t0;
+        printf("{\"case\":\"ideal-cloth-fused\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,"
+               "\"ns_per_particle_step\":%.2f,\"check\":%.9g}\n",
+               n, c.np, steps, t * per, st[1][c.np / 2]);
+    }
+#endif
     return 0;
 }
