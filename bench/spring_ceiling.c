@@ -270,14 +270,19 @@ CLONES static void stage(cloth *c, double ha, double w, int first)
     }
 }
 
+/* Every array the program allocates, freed at its end. */
+static double *columns[64];
+static int ncolumns;
+
 static double *column(size_t m)
 {
-    double *p = aligned_alloc(64, ((m * sizeof(double) + 63) / 64) * 64);
+    double *p = ncolumns < 64 ? aligned_alloc(64, ((m * sizeof(double) + 63) / 64) * 64) : NULL;
     if (!p) {
         fprintf(stderr, "spring_ceiling: out of memory\n");
         exit(1);
     }
     memset(p, 0, m * sizeof(double));
+    columns[ncolumns++] = p;
     return p;
 }
 
@@ -392,5 +397,7 @@ int main(int argc, char **argv)
                n, c.np, steps, t * per, st[1][c.np / 2]);
     }
 #endif
+    for (int i = 0; i < ncolumns; i++)
+        free(columns[i]);
     return 0;
 }
