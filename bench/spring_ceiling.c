@@ -85,6 +85,13 @@ typedef struct cloth {
     size_t off[KINDS];
 } cloth;
 
+/* f = 0 on every particle, the anchors past the sheet included. */
+static void clear_forces(cloth *c)
+{
+    for (int q = 0; q < 3; q++)
+        memset(c->f[q], 0, (c->np + c->pad) * sizeof(double));
+}
+
 /* f of every particle: springs eight first ends at a time, then gravity and
  * drag. The portable loop; derivative512 below is the same with AVX-512. */
 static void derivative_c(cloth *c)
@@ -93,8 +100,7 @@ static void derivative_c(cloth *c)
     const size_t np = c->np;
     double *const *F = c->f;
     double *const *X = c->x, *const *V = c->v;
-    for (int q = 0; q < 3; q++)
-        memset(F[q], 0, (np + c->pad) * sizeof(double));
+    clear_forces(c);
     for (size_t p = 0; p < np; p += CHUNK) {
         double a[3][CHUNK] = {{0}};
         for (int k = 0; k < KINDS; k++) {
@@ -124,16 +130,39 @@ static void derivative_c(cloth *c)
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
 #define HAVE512 1
+/* The spring law on eight springs from chunk p's first ends (xa, va) to
+ * their far ends at q (rows X, V): the differences into e, the magnitude
+ * (psys's operations; zero-length springs exert no force) returned. */
+__attribute__((target("avx512f"))) static inline __m512d spring8(const __m512d xa[3], const __m512d va[3],
+                                                                 double *const *X, double *const *V, size_t q,
+                                                                 const double *rest, __m512d e[3])
+{
+    const __m512d ks = _mm512_set1_pd(100.0), kd = _mm512_set1_pd(0.5), one = _mm512_set1_pd(1.0),
+                  zero = _mm512_setzero_pd();
+    __m512d dv[3];
+    for (int d = 0; d < 3; d++) {
+        e[d] = _mm512_sub_pd(xa[d], _mm512_loadu_pd(X[d] + q));
+        dv[d] = _mm512_sub_pd(va[d], _mm512_loadu_pd(V[d] + q));
+    }
+    const __m512d len2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(e[0], e[0]), _mm512_mul_pd(e[1], e[1])),
+                                       _mm512_mul_pd(e[2], e[2]));
+    const __m512d dot = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dv[0], e[0]), _mm512_mul_pd(dv[1], e[1])),
+                                      _mm512_mul_pd(dv[2], e[2]));
+    const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(one, L);
+    const __m512d m = _mm512_mul_pd(_mm512_add_pd(_mm512_mul_pd(ks, _mm512_sub_pd(L, _mm512_loadu_pd(rest))),
+                                                  _mm512_mul_pd(_mm512_mul_pd(kd, dot), inv)),
+                                    inv);
+    return _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, zero, _CMP_NEQ_OQ), m);
+}
+
 __attribute__((target("avx512f"))) static void derivative512(cloth *c)
 {
-    const __m512d ks = _mm512_set1_pd(100.0), kd = _mm512_set1_pd(0.5), drag = _mm512_set1_pd(0.01),
-                  one = _mm512_set1_pd(1.0), zero = _mm512_setzero_pd();
+    const __m512d drag = _mm512_set1_pd(0.01), zero = _mm512_setzero_pd();
     const __m512d grav[3] = {zero, _mm512_set1_pd(-9.81), zero};
     const size_t np = c->np;
     double *const *F = c->f;
     double *const *X = c->x, *const *V = c->v;
-    for (int q = 0; q < 3; q++)
-        memset(F[q], 0, (np + c->pad) * sizeof(double));
+    clear_forces(c);
     for (size_t p = 0; p < np; p += CHUNK) {
         __m512d xa[3], va[3], a[3];
         for (int d = 0; d < 3; d++) {
@@ -143,21 +172,8 @@ __attribute__((target("avx512f"))) static void derivative512(cloth *c)
         }
         for (int k = 0; k < KINDS; k++) {
             const size_t q = p + c->off[k];
-            __m512d e[3], dv[3];
-            for (int d = 0; d < 3; d++) {
-                e[d] = _mm512_sub_pd(xa[d], _mm512_loadu_pd(X[d] + q));
-                dv[d] = _mm512_sub_pd(va[d], _mm512_loadu_pd(V[d] + q));
-            }
-            const __m512d len2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(e[0], e[0]), _mm512_mul_pd(e[1], e[1])),
-                                               _mm512_mul_pd(e[2], e[2]));
-            const __m512d dot = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dv[0], e[0]), _mm512_mul_pd(dv[1], e[1])),
-                                              _mm512_mul_pd(dv[2], e[2]));
-            const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(one, L);
-            const __m512d m = _mm512_mul_pd(
-                _mm512_add_pd(_mm512_mul_pd(ks, _mm512_sub_pd(L, _mm512_loadu_pd(c->rest[k] + p))),
-                              _mm512_mul_pd(_mm512_mul_pd(kd, dot), inv)),
-                inv);
-            const __m512d mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, zero, _CMP_NEQ_OQ), m);
+            __m512d e[3];
+            const __m512d mag = spring8(xa, va, X, V, q, c->rest[k] + p, e);
             for (int d = 0; d < 3; d++) {
                 const __m512d gd = _mm512_mul_pd(mag, e[d]);
                 a[d] = _mm512_sub_pd(a[d], gd);
@@ -184,8 +200,7 @@ __attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *
                                                                double *const *base, double *const *acc, double ha,
                                                                double w, int which)
 {
-    const __m512d ks = _mm512_set1_pd(100.0), kd = _mm512_set1_pd(0.5), drag = _mm512_set1_pd(0.01),
-                  one = _mm512_set1_pd(1.0), zero = _mm512_setzero_pd();
+    const __m512d drag = _mm512_set1_pd(0.01), zero = _mm512_setzero_pd();
     const __m512d grav[3] = {zero, _mm512_set1_pd(-9.81), zero};
     const __m512d H = _mm512_set1_pd(ha), W = _mm512_set1_pd(w);
     const size_t np = c->np;
@@ -201,21 +216,8 @@ __attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *
         }
         for (int k = 0; k < KINDS; k++) {
             const size_t q = p + c->off[k];
-            __m512d e[3], dv[3];
-            for (int d = 0; d < 3; d++) {
-                e[d] = _mm512_sub_pd(xa[d], _mm512_loadu_pd(in[d] + q));
-                dv[d] = _mm512_sub_pd(va[d], _mm512_loadu_pd(in[3 + d] + q));
-            }
-            const __m512d len2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(e[0], e[0]), _mm512_mul_pd(e[1], e[1])),
-                                               _mm512_mul_pd(e[2], e[2]));
-            const __m512d dot = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dv[0], e[0]), _mm512_mul_pd(dv[1], e[1])),
-                                              _mm512_mul_pd(dv[2], e[2]));
-            const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(one, L);
-            const __m512d m = _mm512_mul_pd(
-                _mm512_add_pd(_mm512_mul_pd(ks, _mm512_sub_pd(L, _mm512_loadu_pd(c->rest[k] + p))),
-                              _mm512_mul_pd(_mm512_mul_pd(kd, dot), inv)),
-                inv);
-            const __m512d mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, zero, _CMP_NEQ_OQ), m);
+            __m512d e[3];
+            const __m512d mag = spring8(xa, va, in, in + 3, q, c->rest[k] + p, e);
             for (int d = 0; d < 3; d++) {
                 const __m512d gd = _mm512_mul_pd(mag, e[d]);
                 a[d] = _mm512_sub_pd(a[d], gd);
