@@ -461,14 +461,22 @@ psys_status psys__springs_prepare_fused(springs *s, size_t np, int *T)
         if (!s->part_ok)
             *T = 1;
     }
+    return psys__springs_prepare_rings(s, np, *T);
+}
+
+psys_status psys__springs_prepare_rings(springs *s, size_t np, int T)
+{
+    psys_status st = springs_plan(s);
+    if (st != PSYS_OK)
+        return st;
     /* A window holds a block of first particles, its runs' length and the
      * largest offset (see spring_fused.c); never more than all particles. */
     size_t need = s->max_off + 2 * SPRING_BLOCK, W = 1;
     while (W < need && W < np)
         W *= 2;
-    if (W > s->ring_w || *T > s->ring_t) {
+    if (W > s->ring_w || T > s->ring_t) {
         size_t w = W > s->ring_w ? W : s->ring_w;
-        int t = *T > s->ring_t ? *T : s->ring_t;
+        int t = T > s->ring_t ? T : s->ring_t;
         double *ring = psys__calloc((size_t)t * 9, psys__springs_ring_stride(w) * sizeof(double));
         if (!ring)
             return PSYS_ERR_NOMEM;

@@ -245,6 +245,14 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
                                    const psys_stage_pass *pass, bool *used);
 /** Whether psys__fused_derivative takes sys as it is now. */
 bool psys__fused_eligible(const psys_system *sys);
+/** Whether psys__fused_chain takes sys for a step of `stages` stages. */
+bool psys__fused_chain_eligible(const psys_system *sys, int stages);
+/** All stages of a chain Runge–Kutta step (psys_ode.derivative_chain) in
+ *  one sweep: stage i on y_i (y0, then pass[i-1].next) with pass[i] applied;
+ *  the bits of psys__fused_derivative stage after stage. *used false (and
+ *  nothing done) when the system is not eligible. */
+psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
+                              const psys_stage_pass *pass, bool *used);
 
 /** The order in which each particle's force receives its spring forces
  *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists

@@ -109,29 +109,58 @@ static int chain_role(const psys__tableau *tab, int i, int nw, int seen, int las
     return w == 0 ? 0 : nw == 1 ? 1 : seen == 0 ? 2 : i == last ? 4 : 3;
 }
 
-/* rk_chain_stages through ode.derivative_stage: each stage's derivative is
- * applied to acc and the next stage's state as it is computed and never
- * stored. The next state alternates between two vectors, since the stage's
+/* Stage i's work on its derivative (psys_stage_pass): weight into acc (y1)
+ * by its role, and the next stage's state into next (NULL after the last). */
+static psys_stage_pass chain_pass(const psys__tableau *tab, int i, double h, const double *y0, double *y1,
+                                  double *next, int nw, int seen, int last)
+{
+    const bool more = i + 1 < tab->stages;
+    const int role = chain_role(tab, i, nw, seen, last);
+    psys_stage_pass p = {.h = h, .base = y0, .w = tab->b[i], .acc = role == 0 ? NULL : y1};
+    p.acc_op = role == 1 ? 2 : more ? (role == 2 ? 0 : 1) : (role == 2 ? 3 : 4);
+    p.next = more ? next : NULL;
+    p.a = more ? tab->a[i + 1][i] : 0;
+    return p;
+}
+
+/* rk_chain_stages through ode.derivative_chain (all stages in one call), or
+ * else ode.derivative_stage: each stage's derivative is applied to acc and
+ * the next stage's state as it is computed and never stored. Stage by
+ * stage, the next state alternates between two vectors, since the stage's
  * own state is read while it is written. The operations per element are
  * those of rk_chain_stages (psys_stage_pass.acc_op), so the same bits.
  * PSYS_ERR_UNSUPPORTED, with nothing done, when the ODE declines. */
 static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0,
                                   double *y1, int nw, int last)
 {
-    if (s->ode.derivative_stage(s->ode.ctx, t, NULL, NULL) != PSYS_OK)
+    const int ns = tab->stages;
+    if (s->ode.derivative_chain && ns > 1 && s->ode.derivative_chain(s->ode.ctx, t, NULL, ns, NULL, NULL) == PSYS_OK) {
+        /* All stages in one call: each stage's state in a vector of its own
+         * (the ODE may still be reading stage i's state while it writes
+         * stage i + 1's), slots YTMP, K0 + 1, ..., K0 + ns - 2. */
+        psys_stage_pass pass[7];
+        for (int i = 0, seen = 0; i < ns; i++) {
+            double *next = i + 1 < ns ? s->buf[i == 0 ? YTMP : K0 + i] : NULL;
+            pass[i] = chain_pass(tab, i, h, y0, y1, next, nw, seen, last);
+            if (tab->b[i] != 0)
+                seen++;
+        }
+        psys_status st = s->ode.derivative_chain(s->ode.ctx, t, y0, ns, tab->c, pass);
+        if (st == PSYS_OK)
+            return PSYS_OK;
+        if (st == PSYS_ERR_UNSUPPORTED) /* it accepted the step: declining now is a fault, not a fallback */
+            return psys__fail(&s->err, PSYS_ERR_INVALID, "the derivative declined a step at t = %.17g", t);
+        return psys__fail(&s->err, st, "the derivative evaluation failed in the step from t = %.17g", t);
+    }
+    if (!s->ode.derivative_stage || s->ode.derivative_stage(s->ode.ctx, t, NULL, NULL) != PSYS_OK)
         return PSYS_ERR_UNSUPPORTED; /* asked before any projection: callbacks run once per stage */
-    double *next[2] = {s->buf[YTMP], tab->stages > 1 ? s->buf[K0 + 1] : NULL};
+    double *next[2] = {s->buf[YTMP], ns > 1 ? s->buf[K0 + 1] : NULL};
     double *yi = y0;
     int seen = 0;
-    for (int i = 0; i < tab->stages; i++) {
-        const bool more = i + 1 < tab->stages;
-        const int role = chain_role(tab, i, nw, seen, last);
+    for (int i = 0; i < ns; i++) {
+        const psys_stage_pass p = chain_pass(tab, i, h, y0, y1, i + 1 < ns ? next[i & 1] : NULL, nw, seen, last);
         if (tab->b[i] != 0)
             seen++;
-        psys_stage_pass p = {.h = h, .base = y0, .w = tab->b[i], .acc = role == 0 ? NULL : y1};
-        p.acc_op = role == 1 ? 2 : more ? (role == 2 ? 0 : 1) : (role == 2 ? 3 : 4);
-        p.next = more ? next[i & 1] : NULL;
-        p.a = more ? tab->a[i + 1][i] : 0;
         const double ti = t + tab->c[i] * h;
         if (s->ode.project)
             s->ode.project(s->ode.ctx, ti, yi);
@@ -159,7 +188,7 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
             nw++;
             last = j;
         }
-    if (s->ode.derivative_stage && nw > 0) {
+    if ((s->ode.derivative_stage || s->ode.derivative_chain) && nw > 0) {
         psys_status st = rk_chain_fused(s, tab, t, h, y0, y1, nw, last);
         if (st != PSYS_ERR_UNSUPPORTED)
             return st;

@@ -22,8 +22,12 @@
  * thread count either. */
 #include "springs.h"
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #define FUSED_MAX_ROWS 8 /* per-particle forces before and after the springs */
 /* Overlapping runs with an offset of at least this many springs go in
@@ -339,13 +343,17 @@ static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo,
     }
 }
 
-/* One thread's share: particles [P, Q) through runs [r0, r1). */
-static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, size_t r1, size_t P, size_t Q,
-                                      const int d)
+/* A sweep of particles [P, Q) through runs [r0, r1) that can stop after
+ * any particle and go on later: the window [done, loaded) and the next run
+ * r are kept between calls. */
+typedef struct sweep {
+    size_t r, r1, P, Q, loaded, done;
+} sweep;
+
+/* A sweep of [P, Q) through runs [r0, r1), nothing done yet: the window
+ * starts at the block of the first run touching [P, Q), or at P. */
+static void sweep_start(const springs *s, sweep *w, size_t r0, size_t r1, size_t P, size_t Q)
 {
-    const springs *s = fz->s;
-    const size_t W = fz->W, mask = fz->mask, S = fz->S;
-    _Alignas(64) double F[3 * SPRING_BLOCK];
     size_t start = P;
     for (size_t r = r0; r < r1; r++) {
         size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r];
@@ -355,7 +363,20 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
             break;
         }
     }
-    size_t loaded = start, done = start; /* window: [done, loaded) */
+    *w = (sweep){.r = r0, .r1 = r1, .P = P, .Q = Q, .loaded = start, .done = start};
+}
+
+/* Go on with sweep w until every particle before `upto` (and in [P, Q))
+ * has left the window: the runs whose block of first particles starts
+ * before upto (no later run touches a particle before it). The window is
+ * the same and each particle sees the same operations wherever a sweep
+ * stops: the bits of one sweep from P to Q. */
+static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_t upto, const int d)
+{
+    const springs *s = fz->s;
+    const size_t W = fz->W, mask = fz->mask, S = fz->S, P = w->P, Q = w->Q;
+    _Alignas(64) double F[3 * SPRING_BLOCK];
+    size_t loaded = w->loaded, done = w->done, r = w->r;
 #define LOAD_TO(p)                                                          \
     while (loaded < (p)) {                                                  \
         size_t cnt_ = W - (loaded & mask);                                  \
@@ -375,13 +396,15 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
             leave(fz, rb, a_, z_ - a_, d);                                  \
         done = e_;                                                          \
     }
-    for (size_t r = r0; r < r1; r++) {
+    for (; r < w->r1; r++) {
         const size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r], k = s->run_k[r];
-        if (!((lo < Q && lo + len > P) || (hi < Q && hi + len > P)))
-            continue;
         /* Runs come in blocks of first particle: nothing before this block
          * receives any more forces. */
         const size_t b = lo & ~(size_t)(SPRING_BLOCK - 1);
+        if (b >= upto)
+            break;
+        if (!((lo < Q && lo + len > P) || (hi < Q && hi + len > P)))
+            continue;
         LEAVE_TO(b)
         LOAD_TO(hi + len)
         const size_t off = hi - lo;
@@ -427,18 +450,30 @@ static FUSED_INLINE void fused_part_d(const fused *fz, double *rb, size_t r0, si
                 Fr[j - jb] += Fc[j];
         }
     }
-    LEAVE_TO(Q)
+    const size_t end = upto < Q ? upto : Q;
+    LEAVE_TO(end)
 #undef LOAD_TO
 #undef LEAVE_TO
+    w->loaded = loaded;
+    w->done = done;
+    w->r = r;
 }
 
 SPRING_CLONES
-static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1, size_t P, size_t Q)
+static void fused_sweep(const fused *fz, int d, double *rb, sweep *w, size_t upto)
 {
     if (d == 2)
-        fused_part_d(fz, rb, r0, r1, P, Q, 2);
+        sweep_to_d(fz, rb, w, upto, 2);
     else
-        fused_part_d(fz, rb, r0, r1, P, Q, 3);
+        sweep_to_d(fz, rb, w, upto, 3);
+}
+
+/* Particles [P, Q) through runs [r0, r1) in one sweep. */
+static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1, size_t P, size_t Q)
+{
+    sweep w;
+    sweep_start(fz->s, &w, r0, r1, P, Q);
+    fused_sweep(fz, d, rb, &w, Q);
 }
 
 bool psys__fused_eligible(const psys_system *sys)
@@ -490,6 +525,173 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
         for (int t = 0; t < T; t++)
             fused_part(&fz, sys->dim, s->ring + (size_t)t * ring, s->rlo[t], s->rhi[t], psys__part_first(n, T, t),
                        psys__part_first(n, T, t + 1));
+    }
+    *used = true;
+    return PSYS_OK;
+}
+
+/* ---- Every stage of a chain step in one sweep (psys_ode.derivative_chain)
+ *
+ * A sweep that has let particles before p leave its window has loaded the
+ * state only below p + reach (reach = max_off + 2·SPRING_BLOCK: a run
+ * starting in p's block reaches that far). So stage i can follow stage
+ * i − 1 at a distance of reach particles: all stages of a step sweep
+ * through memory together, the few thousand particles between the first
+ * and the last staying in cache, and at 10⁶ particles y, the weighted sum
+ * and the stage states come from memory about once a step instead of once
+ * per stage. Each stage has its own window; each particle sees the
+ * operations of the stage-by-stage path in the same order (a sweep's bits
+ * do not depend on where it stops, sweep_to_d).
+ *
+ * Threads own ranges of particles. Within its range [P, Q) thread t runs
+ * stage i on [P + i·reach, Q − i·reach) (a trapezoid, whose states it
+ * computes itself); after a barrier, thread t ≥ 1 runs the inverted
+ * trapezoid at its range's start B = P, stage i ≥ 1 on [B − i·reach,
+ * B + i·reach), stage by stage, from what the two trapezoids around it
+ * left. The same operations per particle again: results do not depend on
+ * the thread count. */
+
+#define CHAIN_MAX_STAGES 7
+/* Particles the leading stage advances between turns of the others. */
+#define CHAIN_STEP 1024
+
+static size_t chain_reach(const springs *s) { return s->max_off + 2 * SPRING_BLOCK; }
+
+/* First run whose first particle's block is at least blk (the plan sorts
+ * runs by that block first). */
+static size_t run_from_block(const springs *s, size_t blk)
+{
+    size_t lo = 0, hi = s->nruns;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (s->run_lo[mid] / SPRING_BLOCK < blk)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* A sweep of [P, Q) through the runs that can touch it. */
+static void chain_sweep_start(const springs *s, sweep *w, size_t P, size_t Q)
+{
+    const size_t reach = chain_reach(s);
+    const size_t r0 = run_from_block(s, P > reach ? (P - reach) / SPRING_BLOCK : 0);
+    const size_t r1 = Q > P ? run_from_block(s, (Q - 1) / SPRING_BLOCK + 1) : r0;
+    sweep_start(s, w, r0, r1, P, Q);
+}
+
+/* Stage i on [lo[i], hi[i]) for every i < stages, stage i kept i·reach
+ * particles behind stage 0, each with its window ring (rings + i·ring). */
+static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, size_t ring, const size_t *lo,
+                            const size_t *hi)
+{
+    const size_t reach = chain_reach(fz->s);
+    sweep w[CHAIN_MAX_STAGES];
+    for (int i = 0; i < stages; i++)
+        chain_sweep_start(fz->s, &w[i], lo[i], hi[i]);
+    for (size_t f = lo[0];;) {
+        f += CHAIN_STEP;
+        bool finished = true;
+        for (int i = 0; i < stages; i++) {
+            if (lo[i] >= hi[i])
+                continue;
+            const size_t lag = (size_t)i * reach;
+            size_t target = f > lag ? f - lag : 0;
+            if (target >= hi[i])
+                target = hi[i];
+            else
+                finished = false;
+            if (target > w[i].done)
+                fused_sweep(&fz[i], d, rings + (size_t)i * ring, &w[i], target);
+        }
+        if (finished)
+            return;
+    }
+}
+
+bool psys__fused_chain_eligible(const psys_system *sys, int stages)
+{
+    fused fz;
+    if (stages < 2 || stages > CHAIN_MAX_STAGES || sys->nctrl || !eligible(sys, &fz))
+        return false;
+    const char *env = getenv("PSYS_CHAIN");
+    if (env && env[0] == '0')
+        return false;
+    return ((const springs *)sys->springs)->nm == 0;
+}
+
+psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
+                              const psys_stage_pass *pass, bool *used)
+{
+    fused fz[CHAIN_MAX_STAGES];
+    *used = false;
+    if (!psys__fused_chain_eligible(sys, stages) || !eligible(sys, &fz[0]))
+        return PSYS_OK;
+    springs *s = sys->springs;
+    const size_t n = sys->n, nd = n * (size_t)sys->dim;
+    int T = e->threads < 1 ? 1 : e->threads > SPRING_MAX_THREADS ? SPRING_MAX_THREADS : e->threads;
+    if (s->n < SPRING_PARALLEL_MIN && nd < PSYS_PAR_MIN && !fz[0].forced)
+        T = 1;
+#ifndef _OPENMP
+    T = 1;
+#endif
+    psys_status st = psys__springs_prepare_rings(s, n, 1); /* the plan and the window's size */
+    if (st != PSYS_OK)
+        return st;
+    const size_t reach = chain_reach(s);
+    /* Each range must hold its two trapezoids' slopes. */
+    const size_t slopes = 2 * (size_t)(stages - 1) * reach + 1;
+    if ((size_t)T > n / slopes)
+        T = n / slopes > 1 ? (int)(n / slopes) : 1;
+    st = psys__springs_prepare_rings(s, n, T * stages);
+    if (st != PSYS_OK)
+        return st;
+    for (int i = 0; i < stages; i++) {
+        if (i > 0)
+            fz[i] = fz[0];
+        fz[i].s = s;
+        fz[i].n = n;
+        fz[i].W = s->ring_w;
+        fz[i].mask = s->ring_w - 1;
+        fz[i].S = psys__springs_ring_stride(s->ring_w);
+        fz[i].x = i == 0 ? y0 : pass[i - 1].next;
+        fz[i].v = fz[i].x + nd;
+        fz[i].mass = sys->mass;
+        fz[i].inv_mass = sys->inv_mass;
+        fz[i].xdot = fz[i].vdot = NULL;
+        fz[i].pass = &pass[i];
+        fz[i].nd = nd;
+    }
+    const size_t ring = 9 * psys__springs_ring_stride(s->ring_w);
+    size_t lo[CHAIN_MAX_STAGES], hi[CHAIN_MAX_STAGES];
+    if (T <= 1) {
+        for (int i = 0; i < stages; i++) {
+            lo[i] = 0;
+            hi[i] = n;
+        }
+        chain_trapezoid(fz, stages, sys->dim, s->ring, ring, lo, hi);
+    } else {
+#ifdef _OPENMP
+#pragma omp parallel num_threads(T) private(lo, hi)
+        {
+            /* the team may be smaller than asked: its ranges are then longer */
+            const int Ta = omp_get_num_threads(), t = omp_get_thread_num();
+            const size_t P = psys__part_first(n, Ta, t), Q = psys__part_first(n, Ta, t + 1);
+            double *rings = s->ring + (size_t)t * (size_t)stages * ring;
+            for (int i = 0; i < stages; i++) {
+                lo[i] = t == 0 ? 0 : P + (size_t)i * reach;
+                hi[i] = t == Ta - 1 ? n : Q - (size_t)i * reach;
+            }
+            chain_trapezoid(fz, stages, sys->dim, rings, ring, lo, hi);
+#pragma omp barrier
+            for (int i = 1; i < stages && t > 0; i++) {
+                sweep w;
+                chain_sweep_start(s, &w, P - (size_t)i * reach, P + (size_t)i * reach);
+                fused_sweep(&fz[i], sys->dim, rings, &w, P + (size_t)i * reach);
+            }
+        }
+#endif
     }
     *used = true;
     return PSYS_OK;

@@ -84,6 +84,9 @@ const double *psys__springs_rest_now(springs *s, double t);
  *  1 when their runs overlap too much) and *T windows for the fused
  *  derivative; PSYS_ERR_NOMEM when they cannot be allocated. */
 psys_status psys__springs_prepare_fused(springs *s, size_t np, int *T);
+/** The plan and T windows for the fused derivative, without a thread
+ *  partition of the runs; PSYS_ERR_NOMEM when they cannot be allocated. */
+psys_status psys__springs_prepare_rings(springs *s, size_t np, int T);
 /** Thread t's runs (rlo[t], rhi[t]) for np particles among T threads, cached. */
 void psys__springs_partition(springs *s, size_t np, int T);
 

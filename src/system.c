@@ -559,6 +559,24 @@ static psys_status ode_derivative_stage(void *ctx, double t, const double *y, co
     return fused ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
 }
 
+/* All stages of a chain step at once, where the fused derivative takes the
+ * system and nothing depends on the stage time: no controlled particles
+ * (project), no muscles (rest lengths of t). */
+static psys_status ode_derivative_chain(void *ctx, double t, const double *y0, int stages, const double *c,
+                                        const psys_stage_pass *pass)
+{
+    psys_system *s = ctx;
+    (void)c; /* the forces the chain takes do not depend on time */
+    if (!y0)
+        return psys__fused_chain_eligible(s, stages) ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+    psys_force_eval e;
+    psys__sys_eval(s, t, y0, y0 + s->n * (size_t)s->dim, &e);
+    bool used = false;
+    if (psys__fused_chain(s, &e, y0, stages, pass, &used) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
+    return used ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+}
+
 /* Implicit-solver view: masses (0 for particles the solver must not move). */
 static void ode_mass(void *ctx, double *m)
 {
@@ -593,6 +611,7 @@ psys_ode psys_system_ode(psys_system *s)
     o.set_time = ode_set_time;
     o.derivative = ode_derivative;
     o.derivative_stage = ode_derivative_stage;
+    o.derivative_chain = ode_derivative_chain;
     o.acceleration = ode_acceleration;
     o.velocity_free = ode_velocity_free;
     o.project = ode_project;

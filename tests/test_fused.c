@@ -202,6 +202,7 @@ static void runs_same_bits(void)
                 psys_ode o = psys_system_ode(s);
                 system_stage = o.derivative_stage;
                 o.derivative_stage = counting_stage;
+                o.derivative_chain = NULL; /* stage by stage here; chain_same_bits compares the chain */
                 stage_calls = 0;
                 psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
                 CHECK(sv != NULL);
@@ -223,6 +224,100 @@ static void runs_same_bits(void)
             free(out[0]);
             free(out[1]);
         }
+}
+
+/* A rope of n particles with a spring to the third neighbour every fifth
+ * particle (offsets 1 and 3), gravity and drag: long enough for several
+ * threads' ranges in the chain sweep. */
+static psys_system *rope(size_t n)
+{
+    const double g3[3] = {0.3, -9.81, 0.2};
+    lcg = 777;
+    psys_system *s = psys_system_create(3, NULL);
+    add_particles(s, 3, n, 1000);
+    CHECK(psys_system_add_drag(s, 0.2) == PSYS_OK);
+    for (size_t i = 0; i + 1 < n; i++) {
+        spring(s, i, i + 1);
+        if (i % 5 == 0 && i + 3 < n)
+            spring(s, i + 3, i);
+    }
+    CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+    CHECK(psys_system_set_fixed(s, n / 2, true) == PSYS_OK);
+    return s;
+}
+
+/* The system's derivative_chain, counting the steps it takes. */
+static psys_status (*system_chain)(void *ctx, double t, const double *y0, int stages, const double *c,
+                                   const psys_stage_pass *pass);
+static long chain_calls;
+static psys_status counting_chain(void *ctx, double t, const double *y0, int stages, const double *c,
+                                  const psys_stage_pass *pass)
+{
+    if (y0)
+        chain_calls++;
+    return system_chain(ctx, t, y0, stages, c, pass);
+}
+
+/* rk4 and midpoint steps with every stage swept together (derivative_chain)
+ * against stage by stage (PSYS_CHAIN=0): the same bits, for 1 to 4
+ * threads (the rope's ranges at 3 and 4 threads, trapezoids and the
+ * patches between them) and for a system with muscles or controlled
+ * particles, which the chain leaves to the stages. */
+static void chain_same_bits(void)
+{
+    static const char *const solvers[] = {"midpoint", "rk4"};
+    for (size_t k = 0; k < 2; k++)
+        for (int kind = 0; kind <= NKINDS; kind++) {
+            double *want = NULL;
+            size_t size = 0;
+            for (int run = 0; run < 5; run++) { /* 0: stage by stage; 1..4: chain on 1..4 threads */
+                setenv("PSYS_FUSED", "1", 1);
+                setenv("PSYS_CHAIN", run == 0 ? "0" : "1", 1);
+                psys_system *s = kind == NKINDS ? rope(30000) : build(kind);
+                CHECK(psys_system_set_threads(s, run == 0 ? 1 : run) == PSYS_OK);
+                psys_ode o = psys_system_ode(s);
+                system_chain = o.derivative_chain;
+                o.derivative_chain = counting_chain;
+                chain_calls = 0;
+                psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
+                CHECK(sv != NULL);
+                for (int step = 0; step < 6; step++) {
+                    double taken;
+                    CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+                }
+                /* muscles (CHAIN_GAPS_2D) depend on the stage time: never chained */
+                CHECK(chain_calls == (run == 0 || kind == CHAIN_GAPS_2D ? 0 : 6));
+                size = o.size;
+                double *got = malloc(size * sizeof(double));
+                o.get_state(o.ctx, got);
+                if (run == 0) {
+                    want = got;
+                } else {
+                    size_t bad = size;
+                    for (size_t i = 0; i < size && bad == size; i++)
+                        if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
+                            bad = i;
+                    if (bad != size)
+                        fprintf(stderr, "%s, kind %d, %d threads: y[%zu] = %.17g, stage by stage %.17g\n",
+                                solvers[k], kind, run, bad, got[bad], want[bad]);
+                    CHECK(bad == size);
+                    free(got);
+                }
+                psys_solver_destroy(sv);
+                psys_system_destroy(s);
+            }
+            unsetenv("PSYS_FUSED");
+            unsetenv("PSYS_CHAIN");
+            free(want);
+        }
+    /* controlled particles: left to the stages (the projection) */
+    psys_system *s = build(SHEET);
+    psys_ode o = psys_system_ode(s);
+    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
+    const double centre[3] = {0, 0, 0}, dir[3] = {1, 0, 0};
+    CHECK(psys_system_control_oscillate(s, 7, centre, dir, 0.1, 3.0, 0) == PSYS_OK);
+    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_ERR_UNSUPPORTED);
+    psys_system_destroy(s);
 }
 
 static bool takes(psys_system *s)
@@ -283,6 +378,7 @@ static const check_case cases[] = {
     {"derivative_same_bits", derivative_same_bits},
     {"runs_same_bits", runs_same_bits},
     {"chooses_path", chooses_path},
+    {"chain_same_bits", chain_same_bits},
     {NULL, NULL},
 };
 

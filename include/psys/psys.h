@@ -124,6 +124,19 @@ typedef struct psys_ode {
      *  ones: the same results, one state vector fewer to write. Belongs with
      *  ctx and derivative, as above. */
     bool (*velocity_free)(void *ctx);
+    /** Optional (may be NULL): every stage of a step of an explicit
+     *  Runge–Kutta solver whose stage i uses only stage i−1, at once. Stage i
+     *  is evaluated at time t + c[i]·pass[i].h on state y_i (y_0 = y0, then
+     *  y_{i+1} = pass[i].next, which stage i writes) and pass[i] applied to
+     *  it, as derivative_stage does; the same results as project and
+     *  derivative_stage stage after stage, however the stages' work is
+     *  interleaved (a system whose forces are local may sweep all stages
+     *  through memory together). PSYS_ERR_UNSUPPORTED when it cannot (the
+     *  solver then goes stage by stage); with y0 NULL it only answers whether
+     *  it can for that many stages, changing nothing. Belongs with ctx and
+     *  derivative, as derivative_stage does. */
+    psys_status (*derivative_chain)(void *ctx, double t, const double *y0, int stages, const double *c,
+                                    const psys_stage_pass *pass);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
