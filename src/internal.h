@@ -246,7 +246,7 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
 /** Whether psys__fused_derivative takes sys as it is now. */
 bool psys__fused_eligible(const psys_system *sys);
 /** Whether psys__fused_chain takes sys for a step of `stages` stages. */
-bool psys__fused_chain_eligible(const psys_system *sys, int stages);
+bool psys__fused_chain_eligible(psys_system *sys, int stages);
 /** All stages of a chain Runge–Kutta step (psys_ode.derivative_chain) in
  *  one sweep: stage i on y_i (y0, then pass[i-1].next) with pass[i] applied;
  *  the bits of psys__fused_derivative stage after stage. *used false (and

@@ -610,15 +610,28 @@ static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, s
     }
 }
 
-bool psys__fused_chain_eligible(const psys_system *sys, int stages)
+/* By default the chain runs when the springs reach at most this many
+ * particles (ropes, chains, narrow strips): there the stages' span stays
+ * in L2 and the sweep was faster (bench/README.md: rope-10⁶ rk4 0.81 × the
+ * time of stage by stage on 1 thread, 0.83 × on 2); cloths of 256 columns
+ * and more (bend springs two rows long) were 2 to 6 % slower with it and
+ * stay stage by stage. PSYS_CHAIN=1 runs it whenever it can (tests), 0
+ * never. */
+#define CHAIN_AUTO_REACH 1000
+
+bool psys__fused_chain_eligible(psys_system *sys, int stages)
 {
     fused fz;
     if (stages < 2 || stages > CHAIN_MAX_STAGES || sys->nctrl || !eligible(sys, &fz))
         return false;
+    springs *s = sys->springs;
     const char *env = getenv("PSYS_CHAIN");
-    if (env && env[0] == '0')
+    if ((env && env[0] == '0') || s->nm != 0)
         return false;
-    return ((const springs *)sys->springs)->nm == 0;
+    if (env && env[0] == '1')
+        return true;
+    /* the plan's reach (an allocation failure: no, and the stage path reports it) */
+    return psys__springs_prepare_rings(s, sys->n, 1) == PSYS_OK && chain_reach(s) <= CHAIN_AUTO_REACH;
 }
 
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,

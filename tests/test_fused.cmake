@@ -16,3 +16,12 @@ foreach(variant "fused;1" "generic;0")
     set_tests_properties(test_determinism.${name}.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=${value}")
   endforeach()
 endforeach()
+# And with every rk4 and midpoint step swept through memory at once (the
+# chain, src/spring_fused.c), forced for every system it can take.
+add_test(NAME cli.determinism.chain
+  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
+set_tests_properties(cli.determinism.chain PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")
+foreach(case thread_counts thread_counts_parallel_paths round_trip_runs)
+  add_test(NAME test_determinism.chain.${case} COMMAND test_determinism ${case})
+  set_tests_properties(test_determinism.chain.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")
+endforeach()
