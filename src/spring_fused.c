@@ -476,6 +476,27 @@ static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1,
     fused_sweep(fz, d, rb, &w, Q);
 }
 
+/* fz (its forces from eligible()) over sys's springs, windows and
+ * particles: the state y, and either ydot or the solver's pass. */
+static void fused_bind(fused *fz, const psys_system *sys, const double *y, double *ydot, const psys_stage_pass *pass)
+{
+    const springs *s = sys->springs;
+    const size_t nd = sys->n * (size_t)sys->dim;
+    fz->s = s;
+    fz->n = sys->n;
+    fz->W = s->ring_w;
+    fz->mask = s->ring_w - 1;
+    fz->S = psys__springs_ring_stride(s->ring_w);
+    fz->x = y;
+    fz->v = y + nd;
+    fz->mass = sys->mass;
+    fz->inv_mass = sys->inv_mass;
+    fz->xdot = ydot;
+    fz->vdot = ydot ? ydot + nd : NULL;
+    fz->pass = pass;
+    fz->nd = nd;
+}
+
 bool psys__fused_eligible(const psys_system *sys)
 {
     fused fz;
@@ -502,19 +523,7 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     const double *rest = psys__springs_rest_now(s, e->t);
     for (size_t m = 0; m < s->nm; m++)
         s->prest[s->pos[s->midx[m]]] = rest[s->midx[m]];
-    fz.s = s;
-    fz.n = n;
-    fz.W = s->ring_w;
-    fz.mask = s->ring_w - 1;
-    fz.S = psys__springs_ring_stride(s->ring_w);
-    fz.x = y;
-    fz.v = y + nd;
-    fz.mass = sys->mass;
-    fz.inv_mass = sys->inv_mass;
-    fz.xdot = ydot;
-    fz.vdot = ydot ? ydot + nd : NULL;
-    fz.pass = pass;
-    fz.nd = nd;
+    fused_bind(&fz, sys, y, ydot, pass);
     const size_t ring = 9 * fz.S;
     if (T <= 1) {
         fused_part(&fz, sys->dim, s->ring, 0, s->nruns, 0, n);
@@ -663,18 +672,7 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
     for (int i = 0; i < stages; i++) {
         if (i > 0)
             fz[i] = fz[0];
-        fz[i].s = s;
-        fz[i].n = n;
-        fz[i].W = s->ring_w;
-        fz[i].mask = s->ring_w - 1;
-        fz[i].S = psys__springs_ring_stride(s->ring_w);
-        fz[i].x = i == 0 ? y0 : pass[i - 1].next;
-        fz[i].v = fz[i].x + nd;
-        fz[i].mass = sys->mass;
-        fz[i].inv_mass = sys->inv_mass;
-        fz[i].xdot = fz[i].vdot = NULL;
-        fz[i].pass = &pass[i];
-        fz[i].nd = nd;
+        fused_bind(&fz[i], sys, i == 0 ? y0 : pass[i - 1].next, NULL, &pass[i]);
     }
     const size_t ring = 9 * psys__springs_ring_stride(s->ring_w);
     size_t lo[CHAIN_MAX_STAGES], hi[CHAIN_MAX_STAGES];
