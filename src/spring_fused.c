@@ -620,13 +620,13 @@ static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, s
 }
 
 /* By default the chain runs when the springs reach at most this many
- * particles (ropes, chains, narrow strips): there the stages' span stays
- * in L2 and the sweep was faster (bench/README.md: rope-10⁶ rk4 0.81 × the
- * time of stage by stage on 1 thread, 0.83 × on 2); cloths of 256 columns
- * and more (bend springs two rows long) were 2 to 6 % slower with it and
- * stay stage by stage. PSYS_CHAIN=1 runs it whenever it can (tests), 0
- * never. */
-#define CHAIN_AUTO_REACH 1000
+ * particles (ropes, chains, strips of a few dozen columns): there the
+ * stages' span stays in L2 and the sweep was faster (bench/README.md:
+ * rope-10⁶ rk4 0.81 and 0.87 × the time of stage by stage on 1 thread,
+ * 0.83 and 0.90 × on 2). Cloths (bend springs two rows long: reach 712 at
+ * 100 columns, 1,024 at 256) were as fast or slower with it and stay stage
+ * by stage. PSYS_CHAIN=1 runs it whenever it can (tests), 0 never. */
+#define CHAIN_AUTO_REACH 600
 
 bool psys__fused_chain_eligible(psys_system *sys, int stages)
 {
