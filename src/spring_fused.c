@@ -628,10 +628,10 @@ static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, s
  * by stage. PSYS_CHAIN=1 runs it whenever it can (tests), 0 never. */
 #define CHAIN_AUTO_REACH 600
 
-bool psys__fused_chain_eligible(psys_system *sys, int stages)
+/* Whether the chain takes sys for `stages` stages; fz gets its forces. */
+static bool chain_takes(psys_system *sys, int stages, fused *fz)
 {
-    fused fz;
-    if (stages < 2 || stages > CHAIN_MAX_STAGES || sys->nctrl || !eligible(sys, &fz))
+    if (stages < 2 || stages > CHAIN_MAX_STAGES || sys->nctrl || !eligible(sys, fz))
         return false;
     springs *s = sys->springs;
     const char *env = getenv("PSYS_CHAIN");
@@ -643,12 +643,18 @@ bool psys__fused_chain_eligible(psys_system *sys, int stages)
     return psys__springs_prepare_rings(s, sys->n, 1) == PSYS_OK && chain_reach(s) <= CHAIN_AUTO_REACH;
 }
 
+bool psys__fused_chain_eligible(psys_system *sys, int stages)
+{
+    fused fz;
+    return chain_takes(sys, stages, &fz);
+}
+
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
                               const psys_stage_pass *pass, bool *used)
 {
     fused fz[CHAIN_MAX_STAGES];
     *used = false;
-    if (!psys__fused_chain_eligible(sys, stages) || !eligible(sys, &fz[0]))
+    if (!chain_takes(sys, stages, &fz[0]))
         return PSYS_OK;
     springs *s = sys->springs;
     const size_t n = sys->n, nd = n * (size_t)sys->dim;
