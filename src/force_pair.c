@@ -305,7 +305,9 @@ static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                       const unsigned char *mark, const uint32_t *changed, size_t nchanged, double *out, int nt)
 {
-    if (psys__pair_group_forces(p, m, x, w, n, mark, changed, nchanged, out, nt)) {
+    /* with every row computed, the copy of x into the records also fills
+     * the forces' cache of positions (grid_eval then skips its copy) */
+    if (psys__pair_group_forces(p, m, x, w, n, mark, changed, nchanged, mark ? NULL : p->grid.xcache, out, nt)) {
         p->stats.grouped++;
         return true;
     }
@@ -586,7 +588,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             memcpy(g->xcache + (size_t)c * d, x + (size_t)c * d, (size_t)d * sizeof(double));
         }
         memset(g->mark, 0, n);
-    } else if (compute) {
+    } else if (compute && !(records && !rows)) { /* (grid_rows copied x with every row computed) */
         PSYS_PAR_FOR(ntv, nd)
         for (size_t k = 0; k < nd; k++)
             g->xcache[k] = x[k];

@@ -497,11 +497,13 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
  *  through pair_row_forces): the same bits as pair_row_forces. changed: when
  *  not NULL, the records (pair_grid.xq, xq_cached) hold xcache, from which
  *  x differs only in particles changed[0..nchanged): only theirs are
- *  copied. False if that path does not run here (a law it does not
+ *  copied. xc (may be NULL; with changed NULL): x is copied there too.
+ *  False if that path does not run here (a law it does not
  *  support, no AVX2, PSYS_GROUP_OFF set, no interleaved lists for its
  *  width); nothing was written. */
 bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
-                             const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *out, int nt);
+                             const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *xc,
+                             double *out, int nt);
 /** After a build of full lists: the interleaved copy psys__pair_group_forces
  *  reads (pair_grid.gl), where that path runs. False if storage could not grow. */
 bool psys__pair_group_lists(pair_force *p, size_t n, int nt);

@@ -555,7 +555,8 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
 }
 
 bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x_in, const double *w, size_t n,
-                             const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *out, int nt)
+                             const unsigned char *rows, const uint32_t *changed, size_t nchanged, double *xc,
+                             double *out, int nt)
 {
 #if defined(PSYS_GROUP_AVX2)
     pair_grid *g = &p->grid;
@@ -593,12 +594,19 @@ bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x
         hi0 = g->xq_hi[0], hi1 = g->xq_hi[1], hi2 = g->xq_hi[2];
     }
     const size_t ncopy = update ? nchanged : n;
+    const bool xcopy = xc && !update;
     (void)nt;
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && ncopy >= PSYS_PAR_MIN) \
              reduction(min: lo0, lo1, lo2) reduction(max: hi0, hi1, hi2))
     for (size_t t = 0; t < ncopy; t++) {
         const size_t i = update ? changed[t] : t;
         const double a = x_in[dd * i], b = x_in[dd * i + 1], z = three ? x_in[dd * i + 2] : 0.0;
+        if (xcopy) {
+            xc[dd * i] = a;
+            xc[dd * i + 1] = b;
+            if (three)
+                xc[dd * i + 2] = z;
+        }
         Q[4 * i] = a;
         Q[4 * i + 1] = b;
         Q[4 * i + 2] = z;
@@ -648,6 +656,7 @@ bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x
     (void)rows;
     (void)changed;
     (void)nchanged;
+    (void)xc;
     (void)out;
     (void)nt;
     return false;

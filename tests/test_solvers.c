@@ -742,6 +742,72 @@ static void nonfinite_particle_force(void)
     }
 }
 
+/* A force object that writes NaN into one force component from its second
+ * evaluation on: a solver's first evaluation is finite. */
+typedef struct late_nan_force {
+    size_t component, calls;
+} late_nan_force;
+
+static void late_nan_force_apply(void *data, const psys_force_eval *e, double *f)
+{
+    late_nan_force *nf = data;
+    (void)e;
+    if (nf->calls++ > 0)
+        f[nf->component] = NAN;
+}
+
+static const psys_force_class late_nan_force_class = {"late-nan", late_nan_force_apply, NULL, NULL, free};
+
+/* A NaN that first appears at the last evaluation of a step (velocity
+ * Verlet's second one reaches only the velocities; symplectic Euler has
+ * one evaluation, so its NaN comes at the next step): the step fails,
+ * names the first bad component, and leaves the state as it was, on one
+ * thread and on two (the system is long enough for the parallel loops). */
+static void nonfinite_last_evaluation(void)
+{
+    const char *names[] = {"verlet", "symplectic-euler"};
+    for (int threads = 1; threads <= 2; threads++)
+        for (int k = 0; k < 2; k++) {
+            psys_error err;
+            psys_system *sys = psys_system_create(3, &err);
+            const size_t np = 30000;
+            for (size_t p = 0; p < np; p++) {
+                const double x[3] = {(double)p, 0.5, -1}, v[3] = {0, 1, 0};
+                CHECK(psys_system_add_particle(sys, x, v, 1.0, NULL, NULL) == PSYS_OK);
+            }
+            const double g[3] = {0, -9.81, 0};
+            CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
+            late_nan_force *nf = malloc(sizeof *nf);
+            CHECK(nf != NULL);
+            nf->component = 3 * 20000 + 2;
+            nf->calls = 0;
+            CHECK(psys_system_add_force(sys, &late_nan_force_class, nf) == PSYS_OK);
+            psys_system_set_threads(sys, threads);
+            psys_ode ode = psys_system_ode(sys);
+            psys_solver *s = make_ode_solver(names[k], &ode);
+            psys_solver_set_threads(s, threads);
+            psys_status st = PSYS_OK;
+            int steps = 0;
+            while (st == PSYS_OK && steps < 3) {
+                st = psys_solver_step(s, 0.01, NULL);
+                steps++;
+            }
+            CHECK(st == PSYS_ERR_NONFINITE);
+            CHECK(steps == (k == 0 ? 1 : 2));
+            /* verlet: particle 20000's z velocity; symplectic Euler: its
+             * position, x1 = x0 + h v1 taking the bad v1 along */
+            const size_t want = (k == 0 ? 3 * np : 0) + 3 * 20000 + 2;
+            if (psys_solver_bad_component(s) != want)
+                fprintf(stderr, "  solver %s: bad component %zu, expected %zu\n", names[k],
+                        psys_solver_bad_component(s), want);
+            CHECK(psys_solver_bad_component(s) == want);
+            const double *v = psys_system_velocities(sys);
+            CHECK(isfinite(v[3 * 20000 + 2]));
+            psys_solver_destroy(s);
+            psys_system_destroy(sys);
+        }
+}
+
 /* A long nonlinear ODE (y_i' = -sin(y_{i+1}) + 0.1 i/n, cyclic), past the
  * length from which the solvers' vector passes run in parallel. */
 typedef struct longode {
@@ -989,6 +1055,7 @@ static const check_case cases[] = {
     {"euler_energy_grows", euler_energy_grows},
     {"nonfinite_custom_ode", nonfinite_custom_ode},
     {"nonfinite_particle_force", nonfinite_particle_force},
+    {"nonfinite_last_evaluation", nonfinite_last_evaluation},
     {NULL, NULL},
 };
 
