@@ -113,20 +113,52 @@ static double wrap1(double x, double lo, double hi, double len)
     return w;
 }
 
+/* Particles per block of psys__box_wrap: a block whose particles all lie
+ * in the box (the usual case) is passed by one vectorised test. */
+#define WRAP_BLOCK 64
+
+/* Whether some coordinate of particles [i0, i1) lies outside [lo, hi) on
+ * its axis (lo, hi: ±inf on axes that do not wrap), NaN included. */
+__attribute__((always_inline)) static inline bool block_outside(const double *x, size_t i0, size_t i1, const int d,
+                                                                const double *lo, const double *hi)
+{
+    int out = 0;
+    for (size_t i = i0; i < i1; i++)
+        for (int k = 0; k < d; k++)
+            out |= !(x[i * (size_t)d + (size_t)k] >= lo[k] && x[i * (size_t)d + (size_t)k] < hi[k]);
+    return out != 0;
+}
+
+PSYS_CLONES static bool any_outside(const double *x, size_t i0, size_t i1, int d, const double *lo, const double *hi)
+{
+    return d == 3 ? block_outside(x, i0, i1, 3, lo, hi) : block_outside(x, i0, i1, 2, lo, hi);
+}
+
 void psys__box_wrap(psys_system *s)
 {
     if (!s->box.any_periodic)
         return;
     int d = s->dim;
+    double lo[3], hi[3];
+    for (int k = 0; k < d; k++) {
+        lo[k] = s->box.periodic[k] ? s->box.lo[k] : -INFINITY;
+        hi[k] = s->box.periodic[k] ? s->box.hi[k] : INFINITY;
+    }
+    const size_t nb = (s->n + WRAP_BLOCK - 1) / WRAP_BLOCK;
     const int nt = psys_system_effective_threads(s);
     (void)nt;
     PSYS_PAR_FOR(nt, s->n * (size_t)d)
-    for (size_t i = 0; i < s->n; i++) {
-        if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+    for (size_t b = 0; b < nb; b++) {
+        const size_t i0 = b * WRAP_BLOCK, i1 = i0 + WRAP_BLOCK < s->n ? i0 + WRAP_BLOCK : s->n;
+        if (!any_outside(s->x, i0, i1, d, lo, hi))
             continue;
-        for (int k = 0; k < d; k++)
-            if (s->box.periodic[k])
-                s->x[i * d + k] = wrap1(s->x[i * d + k], s->box.lo[k], s->box.hi[k], s->box.len[k]);
+        for (size_t i = i0; i < i1; i++) {
+            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
+                continue;
+            for (int k = 0; k < d; k++)
+                if (s->box.periodic[k])
+                    s->x[i * d + k] = wrap1(s->x[i * d + k], s->box.lo[k], s->box.hi[k], s->box.len[k]);
+        }
     }
 }
 

@@ -22,6 +22,16 @@
 #define PSYS_PAR_MIN 65536
 #define PSYS_PAR_FOR(nt, len) PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if ((nt) > 1 && (len) >= PSYS_PAR_MIN))
 
+/* Elementwise scans also built for AVX2 and AVX-512 (x86-64, GCC on
+ * Linux), the variant chosen at load time: comparisons, min/max and
+ * elementwise arithmetic without FMA (-ffp-contract=off), so the same
+ * results on every variant. */
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
+#define PSYS_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
+#define PSYS_CLONES
+#endif
+
 struct cJSON;
 
 /** Fill err (may be NULL) with code and a printf-style message; returns code. */

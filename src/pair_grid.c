@@ -1346,6 +1346,24 @@ static inline bool moved_since(const double *x, const double *xc, size_t i, int 
 
 /* At most this many threads look for the moved particles of a cached evaluation. */
 #define PAIR_MOVED_THREADS 64
+/* Particles per block of the scans below: a block with nothing to report
+ * is passed by one vectorised test. */
+#define SCAN_BLOCK 64
+
+/* Whether moved_since holds for any particle of components [k0, k1) of x
+ * and xc (a != b, NaN included, or the signs differ), in a form the
+ * vectoriser takes. */
+PSYS_CLONES static bool block_moved(const double *x, const double *xc, size_t k0, size_t k1)
+{
+    uint64_t any = 0;
+    for (size_t k = k0; k < k1; k++) {
+        uint64_t a, b;
+        memcpy(&a, x + k, sizeof a);
+        memcpy(&b, xc + k, sizeof b);
+        any |= (uint64_t)(x[k] != xc[k]) | ((a ^ b) >> 63);
+    }
+    return any != 0;
+}
 
 size_t psys__pair_grid_moved(pair_force *p, const double *x, size_t n)
 {
@@ -1361,9 +1379,16 @@ size_t psys__pair_grid_moved(pair_force *p, const double *x, size_t n)
     PSYS_OMP(omp parallel for schedule(static, 1) num_threads(nm) if (nm > 1))
     for (int t = 0; t < nm; t++) {
         size_t c = 0;
-        for (size_t i = at[t]; i < at[t + 1] && c <= n / 8; i++)
-            if (moved_since(x, g->xcache, i, d))
-                g->changed[at[t] + c++] = (uint32_t)i;
+        for (size_t i = at[t]; i < at[t + 1] && c <= n / 8;) {
+            const size_t e = at[t + 1] - i > SCAN_BLOCK ? i + SCAN_BLOCK : at[t + 1];
+            if (!block_moved(x, g->xcache, i * (size_t)d, e * (size_t)d)) {
+                i = e;
+                continue;
+            }
+            for (; i < e && c <= n / 8; i++)
+                if (moved_since(x, g->xcache, i, d))
+                    g->changed[at[t] + c++] = (uint32_t)i;
+        }
         cnt[t] = c;
     }
     for (int t = 0; t < nm; t++) {
@@ -1382,6 +1407,57 @@ static inline void top_two(double r2, double *m1, double *m2, int *bad)
     *bad |= !(r2 == r2);
     *m2 = lo > *m2 ? lo : *m2;
     *m1 = r2 > *m1 ? r2 : *m1;
+}
+
+/* top_two over the squared displacements (moved2) of particles [i0, i1),
+ * eight lanes at a time, each lane keeping its own two largest, then
+ * merged: the two largest of a set do not depend on the order, so the
+ * same as one lane in index order. pair_delta_folded (exact) is
+ * pair_delta, in a form the vectoriser takes. */
+#define TOP_LANES 8
+__attribute__((always_inline)) static inline void top_two_lanes(const pair_image *m, const double *x,
+                                                                const double *xr, size_t i0, size_t i1, const int d,
+                                                                double *m1, double *m2, int *bad)
+{
+    double hl[3], ln[3], il[3], fr[3];
+    pair_image_fold(m, hl, ln, il, fr);
+    double t1[TOP_LANES] = {0}, t2[TOP_LANES] = {0};
+    int tb[TOP_LANES] = {0};
+    size_t i = i0;
+    for (; i1 - i >= TOP_LANES; i += TOP_LANES) {
+        double r2[TOP_LANES];
+        for (int l = 0; l < TOP_LANES; l++) {
+            const size_t q = (i + (size_t)l) * (size_t)d;
+            double s = 0;
+            for (int k = 0; k < d; k++) {
+                const double dx = pair_delta_folded(hl[k], ln[k], il[k], fr[k], x[q + (size_t)k] - xr[q + (size_t)k], true);
+                s += dx * dx;
+            }
+            r2[l] = s;
+        }
+        for (int l = 0; l < TOP_LANES; l++) {
+            const double lo = r2[l] < t1[l] ? r2[l] : t1[l];
+            tb[l] |= !(r2[l] == r2[l]);
+            t2[l] = lo > t2[l] ? lo : t2[l];
+            t1[l] = r2[l] > t1[l] ? r2[l] : t1[l];
+        }
+    }
+    for (int l = 0; l < TOP_LANES; l++) {
+        top_two(t1[l], m1, m2, bad);
+        top_two(t2[l], m1, m2, bad);
+        *bad |= tb[l];
+    }
+    for (; i < i1; i++)
+        top_two(moved2(m, x, xr, i, d), m1, m2, bad);
+}
+
+PSYS_CLONES static void top_two_range(const pair_image *m, const double *x, const double *xr, size_t i0, size_t i1,
+                                      int d, double *m1, double *m2, int *bad)
+{
+    if (d == 3)
+        top_two_lanes(m, x, xr, i0, i1, 3, m1, m2, bad);
+    else
+        top_two_lanes(m, x, xr, i0, i1, 2, m1, m2, bad);
 }
 
 /* The lists stay valid while the two largest displacements since the build
@@ -1426,9 +1502,13 @@ bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
             {
                 double t1 = 0, t2 = 0;
                 int tb = 0;
-                PSYS_OMP(omp for schedule(static))
-                for (size_t i = 0; i < n; i++)
-                    top_two(moved2(&m, x, xr, i, d), &t1, &t2, &tb); /* NaN: flagged, and no effect */
+                size_t r0 = 0, r1 = n; /* this thread's range, as schedule(static) would split it */
+#ifdef _OPENMP
+                const size_t T = (size_t)omp_get_num_threads(), id = (size_t)omp_get_thread_num();
+                r0 = n * id / T;
+                r1 = n * (id + 1) / T;
+#endif
+                top_two_range(&m, x, xr, r0, r1, d, &t1, &t2, &tb); /* NaN: flagged, and no effect */
                 PSYS_OMP(omp critical(psys_grid_moved))
                 {
                     m2 = fmax(fmax(m2, t2), fmin(m1, t1));

@@ -781,6 +781,52 @@ static void grid_rebuild_criterion(void)
     psys_system_destroy(sys);
 }
 
+/* The same rule when most particles moved, so the check passes over all of
+ * them (in lanes of eight, each keeping its own two largest): every
+ * particle moved 0.001, particle 34 0.15 more, then particle 42, in the
+ * same lane, 0.06: the second pair of moves must rebuild. */
+static void grid_rebuild_criterion_all_moved(void)
+{
+    psys_system *sys = make_system(2);
+    for (int i = 0; i < 10; i++)
+        for (int j = 0; j < 10; j++) {
+            double x[2] = {0.5 * i, 0.5 * j};
+            add_particle(sys, x, NULL, 1);
+        }
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_SOFT_REPULSION;
+    def.radius = 0.6;
+    def.skin = 0.2;
+    size_t k = add_pair(sys, &def);
+    psys_pair_stats st;
+    free(forces_of(sys));
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1);
+    for (size_t i = 0; i < 100; i++) {
+        const double *p = psys_system_positions(sys) + 2 * i;
+        double x[2] = {p[0] + 0.001 + (i == 34 ? 0.15 : 0.0), p[1]};
+        psys_system_set_particle(sys, i, x, NULL);
+    }
+    free(forces_of(sys));
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1); /* 0.151 + 0.001 < skin */
+    for (size_t i = 0; i < 100; i++) {
+        const double *p = psys_system_positions(sys) + 2 * i;
+        double x[2] = {p[0], p[1] + (i == 42 ? 0.06 : 1e-9)};
+        psys_system_set_particle(sys, i, x, NULL);
+    }
+    double *f1 = forces_of(sys);
+    CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 2); /* 0.151 + 0.060 >= skin */
+    psys_system *fresh = make_system(2);
+    for (size_t i = 0; i < 100; i++)
+        add_particle(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
+    add_pair(fresh, &def);
+    double *f2 = forces_of(fresh);
+    CHECK(memcmp(f1, f2, 100 * 2 * sizeof(double)) == 0);
+    free(f1);
+    free(f2);
+    psys_system_destroy(fresh);
+    psys_system_destroy(sys);
+}
+
 /* The grid method reuses the forces of particles whose neighbourhood did not
  * move (verlet's two evaluations at the same positions, up to particles
  * wrapped into the box): a periodic verlet run equals the direct method's bit
@@ -1656,6 +1702,7 @@ static const check_case cases[] = {
     {"grid_equals_direct_lattice", grid_equals_direct_lattice},
     {"grid_lists_keep_radius", grid_lists_keep_radius},
     {"grid_rebuild_criterion", grid_rebuild_criterion},
+    {"grid_rebuild_criterion_all_moved", grid_rebuild_criterion_all_moved},
     {"grid_cache_matches_direct", grid_cache_matches_direct},
     {"grid_partial_matches_direct", grid_partial_matches_direct},
     {"grid_partial_keeps_unchanged_rows", grid_partial_keeps_unchanged_rows},
