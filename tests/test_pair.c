@@ -728,9 +728,9 @@ static void grid_partial_keeps_unchanged_rows(void)
     psys_system_destroy(b);
 }
 
-/* Lists are rebuilt only when the two largest displacements since the last
- * build add up to the skin or more. */
-static void grid_rebuild_criterion(void)
+/* The rebuild tests' system: a 10 × 10 lattice of spacing 0.5 with a
+ * soft repulsion of radius 0.6 and skin 0.2 (*def, force index *k). */
+static psys_system *rebuild_lattice(psys_pair_def *def, size_t *k)
 {
     psys_system *sys = make_system(2);
     for (int i = 0; i < 10; i++)
@@ -738,11 +738,33 @@ static void grid_rebuild_criterion(void)
             double x[2] = {0.5 * i, 0.5 * j};
             add_particle(sys, x, NULL, 1);
         }
-    psys_pair_def def = psys_pair_def_default();
-    def.law = PSYS_PAIR_SOFT_REPULSION;
-    def.radius = 0.6;
-    def.skin = 0.2;
-    size_t k = add_pair(sys, &def);
+    *def = psys_pair_def_default();
+    def->law = PSYS_PAIR_SOFT_REPULSION;
+    def->radius = 0.6;
+    def->skin = 0.2;
+    *k = add_pair(sys, def);
+    return sys;
+}
+
+/* The forces of a fresh rebuild_lattice system (pair def) with sys's positions. */
+static double *fresh_forces(const psys_system *sys, const psys_pair_def *def)
+{
+    psys_system *fresh = make_system(2);
+    for (size_t i = 0; i < 100; i++)
+        add_particle(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
+    add_pair(fresh, def);
+    double *f = forces_of(fresh);
+    psys_system_destroy(fresh);
+    return f;
+}
+
+/* Lists are rebuilt only when the two largest displacements since the last
+ * build add up to the skin or more. */
+static void grid_rebuild_criterion(void)
+{
+    psys_pair_def def;
+    size_t k;
+    psys_system *sys = rebuild_lattice(&def, &k);
     psys_pair_stats st;
     double *f0 = forces_of(sys);
     CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1 && st.pairs == 90 + 90 + 162);
@@ -767,17 +789,12 @@ static void grid_rebuild_criterion(void)
     psys_system_set_particle(sys, 77, y0, NULL);
     double *f1 = forces_of(sys);
     CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 2);
-    psys_system *fresh = make_system(2);
-    for (size_t i = 0; i < 100; i++)
-        add_particle(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
-    add_pair(fresh, &def);
-    double *f2 = forces_of(fresh);
+    double *f2 = fresh_forces(sys, &def);
     CHECK(memcmp(f1, f2, 100 * 2 * sizeof(double)) == 0);
     CHECK(memcmp(f0, f2, 100 * 2 * sizeof(double)) != 0);
     free(f0);
     free(f1);
     free(f2);
-    psys_system_destroy(fresh);
     psys_system_destroy(sys);
 }
 
@@ -787,17 +804,9 @@ static void grid_rebuild_criterion(void)
  * same lane, 0.06: the second pair of moves must rebuild. */
 static void grid_rebuild_criterion_all_moved(void)
 {
-    psys_system *sys = make_system(2);
-    for (int i = 0; i < 10; i++)
-        for (int j = 0; j < 10; j++) {
-            double x[2] = {0.5 * i, 0.5 * j};
-            add_particle(sys, x, NULL, 1);
-        }
-    psys_pair_def def = psys_pair_def_default();
-    def.law = PSYS_PAIR_SOFT_REPULSION;
-    def.radius = 0.6;
-    def.skin = 0.2;
-    size_t k = add_pair(sys, &def);
+    psys_pair_def def;
+    size_t k;
+    psys_system *sys = rebuild_lattice(&def, &k);
     psys_pair_stats st;
     free(forces_of(sys));
     CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 1);
@@ -815,15 +824,10 @@ static void grid_rebuild_criterion_all_moved(void)
     }
     double *f1 = forces_of(sys);
     CHECK(psys_system_pair_stats(sys, k, &st) == PSYS_OK && st.rebuilds == 2); /* 0.151 + 0.060 >= skin */
-    psys_system *fresh = make_system(2);
-    for (size_t i = 0; i < 100; i++)
-        add_particle(fresh, psys_system_positions(sys) + 2 * i, NULL, 1);
-    add_pair(fresh, &def);
-    double *f2 = forces_of(fresh);
+    double *f2 = fresh_forces(sys, &def);
     CHECK(memcmp(f1, f2, 100 * 2 * sizeof(double)) == 0);
     free(f1);
     free(f2);
-    psys_system_destroy(fresh);
     psys_system_destroy(sys);
 }
 
