@@ -300,14 +300,14 @@ static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 #define ROWS_CHUNK 64
 
 /* Grid forces over full lists: four rows at a time where that runs
- * (pair_group.c; true), else through rows_fns, in parallel by chunks of
- * rows. changed: see psys__pair_group_forces. */
+ * (pair_group.c; true, and x copied into xc too where xc is not NULL),
+ * else through rows_fns, in parallel by chunks of rows. changed, xc: see
+ * psys__pair_group_forces. */
 static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
-                      const unsigned char *mark, const uint32_t *changed, size_t nchanged, double *out, int nt)
+                      const unsigned char *mark, const uint32_t *changed, size_t nchanged, double *xc, double *out,
+                      int nt)
 {
-    /* with every row computed, the copy of x into the records also fills
-     * the forces' cache of positions (grid_eval then skips its copy) */
-    if (psys__pair_group_forces(p, m, x, w, n, mark, changed, nchanged, mark ? NULL : p->grid.xcache, out, nt)) {
+    if (psys__pair_group_forces(p, m, x, w, n, mark, changed, nchanged, xc, out, nt)) {
         p->stats.grouped++;
         return true;
     }
@@ -483,7 +483,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         /* MPI, replicated state (mpi.c): this rank's rows only, which change
          * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
-            grid_rows(p, m, x, w, n, own, NULL, 0, g->fcache, nt);
+            grid_rows(p, m, x, w, n, own, NULL, 0, NULL, g->fcache, nt);
         } else {
             fn(p, m, x, w, n, own, g->fcache, nt);
         }
@@ -578,8 +578,11 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             if (!own[i])
                 memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
     bool records = false; /* pair_group.c's records now hold x */
+    /* with every row computed, the copy of x into the records also fills
+     * the forces' cache of positions, and the copy below is skipped */
+    double *xc = rows ? NULL : g->xcache;
     if (compute && !g->half && pair_can_vectorise(p, w, n))
-        records = grid_rows(p, m, x, w, n, rows, mark && xq_cached ? g->changed : NULL, nc, g->fcache, nt);
+        records = grid_rows(p, m, x, w, n, rows, mark && xq_cached ? g->changed : NULL, nc, xc, g->fcache, nt);
     else if (compute)
         fn(p, m, x, w, n, rows, g->fcache, nt);
     if (mark) {
@@ -588,7 +591,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             memcpy(g->xcache + (size_t)c * d, x + (size_t)c * d, (size_t)d * sizeof(double));
         }
         memset(g->mark, 0, n);
-    } else if (compute && !(records && !rows)) { /* (grid_rows copied x with every row computed) */
+    } else if (compute && !(records && xc)) {
         PSYS_PAR_FOR(ntv, nd)
         for (size_t k = 0; k < nd; k++)
             g->xcache[k] = x[k];

@@ -1435,12 +1435,8 @@ __attribute__((always_inline)) static inline void top_two_lanes(const pair_image
             }
             r2[l] = s;
         }
-        for (int l = 0; l < TOP_LANES; l++) {
-            const double lo = r2[l] < t1[l] ? r2[l] : t1[l];
-            tb[l] |= !(r2[l] == r2[l]);
-            t2[l] = lo > t2[l] ? lo : t2[l];
-            t1[l] = r2[l] > t1[l] ? r2[l] : t1[l];
-        }
+        for (int l = 0; l < TOP_LANES; l++)
+            top_two(r2[l], &t1[l], &t2[l], &tb[l]);
     }
     for (int l = 0; l < TOP_LANES; l++) {
         top_two(t1[l], m1, m2, bad);
@@ -1502,7 +1498,7 @@ bool psys__pair_grid_update(pair_force *p, const psys_force_eval *e)
             {
                 double t1 = 0, t2 = 0;
                 int tb = 0;
-                size_t r0 = 0, r1 = n; /* this thread's range, as schedule(static) would split it */
+                size_t r0 = 0, r1 = n; /* this thread's range (any split gives the same two) */
 #ifdef _OPENMP
                 const size_t T = (size_t)omp_get_num_threads(), id = (size_t)omp_get_thread_num();
                 r0 = n * id / T;
