@@ -259,6 +259,10 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
             if (a0 >= a1 && b0 >= b1)
                 continue;
         }
+        if (len < SPRING_SHORT) {
+            run_short(X, V, Fs, cap, SIZE_MAX, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, a0, a1, b0, b1, d);
+            continue;
+        }
         if (s->run_uni[r])
             run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, true, d);
         else

@@ -407,6 +407,11 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
             continue;
         LEAVE_TO(b)
         LOAD_TO(hi + len)
+        if (len < SPRING_SHORT) {
+            run_short(rb, rb + (size_t)d * S, rb + (size_t)(2 * d) * S, S, mask, lo, hi, s->pks + k, s->pkd + k,
+                      s->prest + k, len, 0, len, 0, len, d);
+            continue;
+        }
         const size_t off = hi - lo;
         const bool uni = s->run_uni[r];
         if (off >= len) {

@@ -127,6 +127,48 @@ static inline void run_forces_d(const double *restrict X, const double *restrict
     }
 }
 
+/* Runs shorter than this skip the vector loops (run_short): a mesh whose
+ * particles come in no particular order forms hardly any runs, and a vector
+ * loop's set-up and remainder per spring cost it several times the spring
+ * itself (bench/README.md). */
+#define SPRING_SHORT 4
+
+/* A run of len < SPRING_SHORT springs (lo + j, hi + j), plan slots k + j,
+ * on component rows of stride S (X: positions, V: velocities, F: forces;
+ * a particle's slot is its index & mask): the operations of run_forces_d per
+ * spring, and the additions in plan order, the first ends (f -= F) before
+ * the second (f += F). Only the ends at j in [a0, a1) and [b0, b1) are
+ * written. */
+static inline void run_short(const double *X, const double *V, double *F, size_t S, size_t mask, size_t lo,
+                             size_t hi, const double *ks, const double *kd, const double *rest, size_t len, size_t a0,
+                             size_t a1, size_t b0, size_t b1, const int d)
+{
+    double G[3][SPRING_SHORT];
+    for (size_t j = 0; j < len; j++) {
+        const size_t a = (lo + j) & mask, b = (hi + j) & mask;
+        double l0 = X[a] - X[b], l1 = X[S + a] - X[S + b];
+        double d0 = V[a] - V[b], d1 = V[S + a] - V[S + b];
+        double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1, l2 = 0;
+        if (d == 3) {
+            l2 = X[2 * S + a] - X[2 * S + b];
+            double d2 = V[2 * S + a] - V[2 * S + b];
+            len2 = len2 + l2 * l2;
+            dot = dot + d2 * l2;
+        }
+        double mag = psys__spring_mag(ks[j], kd[j], rest[j], len2, dot);
+        G[0][j] = mag * l0;
+        G[1][j] = mag * l1;
+        G[2][j] = mag * l2;
+    }
+    for (int c = 0; c < d; c++) {
+        double *Fc = F + (size_t)c * S;
+        for (size_t j = a0; j < a1; j++)
+            Fc[(lo + j) & mask] -= G[c][j];
+        for (size_t j = b0; j < b1; j++)
+            Fc[(hi + j) & mask] += G[c][j];
+    }
+}
+
 /* On x86-64 with GCC, also AVX2 and AVX-512 builds of the loop, chosen at
  * load time by what the CPU has (4 or 8 doubles per instruction instead of
  * 2). The same operations in the same order (no FMA: -ffp-contract=off;
