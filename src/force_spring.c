@@ -26,6 +26,9 @@ static void plan_free(springs *s)
     free(s->pkd);
     free(s->prest);
     free(s->pos);
+    free(s->perm);
+    s->perm = NULL;
+    s->perm_n = 0;
     s->run_lo = s->run_off = s->run_len = NULL;
     s->run_k = s->pos = NULL;
     s->run_uni = NULL;
@@ -304,7 +307,15 @@ static void soa_gather(springs *s, const psys_force_eval *e, const double *f, si
     for (int q = 0; q < 3; q++) {
         const double *restrict a = src[q];
         double *restrict c0 = s->soa + (size_t)(q * d) * cap, *restrict c1 = c0 + cap, *restrict c2 = c1 + cap;
-        if (d == 2) {
+        if (s->perm) {
+            for (size_t i = P; i < Q; i++) {
+                const size_t p = (size_t)s->perm[i] * (size_t)d;
+                c0[i] = a[p];
+                c1[i] = a[p + 1];
+                if (d == 3)
+                    c2[i] = a[p + 2];
+            }
+        } else if (d == 2) {
             for (size_t i = P; i < Q; i++) {
                 c0[i] = a[2 * i];
                 c1[i] = a[2 * i + 1];
@@ -326,7 +337,15 @@ static void soa_scatter(const springs *s, int d, double *f, size_t P, size_t Q)
     const size_t cap = s->soa_cap;
     const double *restrict c0 = s->soa + (size_t)(2 * d) * cap, *restrict c1 = c0 + cap, *restrict c2 = c1 + cap;
     double *restrict a = f;
-    if (d == 2) {
+    if (s->perm) {
+        for (size_t i = P; i < Q; i++) {
+            const size_t p = (size_t)s->perm[i] * (size_t)d;
+            a[p] = c0[i];
+            a[p + 1] = c1[i];
+            if (d == 3)
+                a[p + 2] = c2[i];
+        }
+    } else if (d == 2) {
         for (size_t i = P; i < Q; i++) {
             a[2 * i] = c0[i];
             a[2 * i + 1] = c1[i];
@@ -379,6 +398,127 @@ static int plan_cmp(const void *p, const void *q)
     return (a->k > b->k) - (a->k < b->k);
 }
 
+/* Sets of at least this many springs may be given an internal order
+ * (springs_plan); smaller ones stay in cache whatever their order. */
+#define SPRING_ORDER_MIN 4096
+
+/* Mean |slot(a) - slot(b)| over the springs (slot NULL: the identity). */
+static double mean_offset(const springs *s, const uint32_t *slot)
+{
+    double sum = 0;
+    for (size_t k = 0; k < s->n; k++) {
+        const size_t a = slot ? slot[s->a[k]] : s->a[k], b = slot ? slot[s->b[k]] : s->b[k];
+        sum += (double)(a > b ? a - b : b - a);
+    }
+    return s->n ? sum / (double)s->n : 0.0;
+}
+
+/* Breadth-first search from r over the graph (xadj, adj), marking with
+ * `mark` and appending to q from *qn; returns the number of levels and
+ * leaves the last level's first entry in *last. */
+static size_t bfs_levels(const size_t *xadj, const uint32_t *adj, uint32_t *seen, uint32_t mark, uint32_t r,
+                         uint32_t *q, size_t *qn, size_t *last)
+{
+    size_t head = *qn, levels = 0;
+    q[(*qn)++] = r;
+    seen[r] = mark;
+    while (head < *qn) {
+        const size_t end = *qn;
+        *last = head;
+        levels++;
+        for (; head < end; head++)
+            for (size_t e = xadj[q[head]]; e < xadj[q[head] + 1]; e++)
+                if (seen[adj[e]] != mark) {
+                    seen[adj[e]] = mark;
+                    q[(*qn)++] = adj[e];
+                }
+    }
+    return levels;
+}
+
+/* Cuthill–McKee order of particles [0, m) over the spring graph: component
+ * by component (in order of their lowest particle), breadth first from a
+ * pseudo-peripheral particle (George and Liu: the far level's particle of
+ * least degree, while the depth grows), each particle's unvisited
+ * neighbours by increasing degree then index; particles with no spring
+ * last. Neighbours end up close in the order (a grid's rows become its
+ * diagonals): the spring loops touch a narrow band of memory. Depends only
+ * on the springs' ends. perm[slot] = particle; NULL when out of memory. */
+static uint32_t *cuthill_mckee(const springs *s, size_t m)
+{
+    size_t *xadj = psys__calloc(m + 1, sizeof *xadj);
+    uint32_t *adj = psys__calloc(2 * s->n + 1, sizeof *adj), *seen = psys__calloc(m, sizeof *seen);
+    uint32_t *perm = psys__calloc(m, sizeof *perm), *q = psys__calloc(m, sizeof *q);
+    if (!xadj || !adj || !seen || !perm || !q) {
+        free(xadj), free(adj), free(seen), free(perm), free(q);
+        return NULL;
+    }
+    for (size_t k = 0; k < s->n; k++) {
+        xadj[s->a[k] + 1]++;
+        xadj[s->b[k] + 1]++;
+    }
+    for (size_t i = 0; i < m; i++)
+        xadj[i + 1] += xadj[i];
+    {
+        size_t *fill = xadj; /* each start advanced to its end, then shifted back */
+        for (size_t k = 0; k < s->n; k++) {
+            adj[fill[s->a[k]]++] = s->b[k];
+            adj[fill[s->b[k]]++] = s->a[k];
+        }
+        for (size_t i = m; i > 0; i--)
+            xadj[i] = xadj[i - 1];
+        xadj[0] = 0;
+    }
+    /* each list by increasing degree, then index (insertion sort: lists are short) */
+    for (size_t i = 0; i < m; i++)
+        for (size_t e = xadj[i] + 1; e < xadj[i + 1]; e++) {
+            const uint32_t v = adj[e];
+            const size_t dv = xadj[v + 1] - xadj[v];
+            size_t f = e;
+            for (; f > xadj[i]; f--) {
+                const uint32_t u = adj[f - 1];
+                const size_t du = xadj[u + 1] - xadj[u];
+                if (du < dv || (du == dv && u <= v))
+                    break;
+                adj[f] = u;
+            }
+            adj[f] = v;
+        }
+    size_t n = 0;
+    uint32_t mark = 0;
+    for (size_t i = 0; i < m; i++) {
+        if (seen[i] != 0 || xadj[i + 1] == xadj[i])
+            continue;
+        /* a pseudo-peripheral start, found with scratch searches at the end of q */
+        uint32_t r = (uint32_t)i;
+        size_t depth = 0;
+        for (int it = 0; it < 8; it++) {
+            size_t qn = n, last = n;
+            const size_t lv = bfs_levels(xadj, adj, seen, ++mark, r, q, &qn, &last);
+            if (it > 0 && lv <= depth)
+                break;
+            depth = lv;
+            uint32_t best = q[last];
+            for (size_t t = last; t < qn; t++) {
+                const uint32_t c = q[t];
+                const size_t dc = xadj[c + 1] - xadj[c], db = xadj[best + 1] - xadj[best];
+                if (dc < db || (dc == db && c < best))
+                    best = c;
+            }
+            r = best;
+        }
+        /* the component in order, kept (its marks stay: never 0) */
+        size_t last = n;
+        bfs_levels(xadj, adj, seen, ++mark, r, q, &n, &last);
+    }
+    for (size_t i = 0; i < m; i++)
+        if (xadj[i + 1] == xadj[i])
+            q[n++] = (uint32_t)i;
+    memcpy(perm, q, m * sizeof *perm);
+    free(xadj), free(adj), free(seen), free(q);
+    return perm;
+}
+
 /* Build the plan for the current spring set (allocates; called before a
  * step through psys__springs_prepare, so failure is an error status). */
 static psys_status springs_plan(springs *s)
@@ -386,6 +526,31 @@ static psys_status springs_plan(springs *s)
     if (s->plan_ok && s->plan_version == s->version)
         return PSYS_OK;
     const size_t S = s->n, cap = S ? S : 1;
+    /* The internal order: the particles' own, unless the springs join
+     * particles far apart in it and the Cuthill–McKee order brings them at
+     * least twice as close on average (a mesh whose particles come shuffled:
+     * bench/README.md). */
+    uint32_t *perm = NULL, *slot = NULL;
+    size_t m = 0;
+    for (size_t k = 0; k < S; k++) {
+        m = s->a[k] + (size_t)1 > m ? s->a[k] + (size_t)1 : m;
+        m = s->b[k] + (size_t)1 > m ? s->b[k] + (size_t)1 : m;
+    }
+    if (S >= SPRING_ORDER_MIN) {
+        perm = cuthill_mckee(s, m);
+        slot = perm ? psys__calloc(m, sizeof *slot) : NULL;
+        if (!slot) {
+            free(perm);
+            return PSYS_ERR_NOMEM;
+        }
+        for (size_t i = 0; i < m; i++)
+            slot[perm[i]] = (uint32_t)i;
+        if (!(2 * mean_offset(s, slot) < mean_offset(s, NULL))) {
+            free(perm);
+            free(slot);
+            perm = slot = NULL;
+        }
+    }
     plan_item *it = psys__calloc(cap, sizeof *it);
     springs p = {0};
     p.run_lo = psys__calloc(cap, sizeof *p.run_lo);
@@ -400,11 +565,14 @@ static psys_status springs_plan(springs *s)
     if (!it || !p.run_lo || !p.run_off || !p.run_len || !p.run_k || !p.run_uni || !p.pks || !p.pkd || !p.prest
         || !p.pos) {
         free(it);
+        free(slot);
+        free(perm);
         plan_free(&p);
         return PSYS_ERR_NOMEM;
     }
+#define SLOT_OF(i) (slot ? slot[i] : (i))
     for (size_t k = 0; k < S; k++) {
-        uint64_t a = s->a[k], b = s->b[k], lo = a < b ? a : b, off = a < b ? b - a : a - b;
+        uint64_t a = SLOT_OF(s->a[k]), b = SLOT_OF(s->b[k]), lo = a < b ? a : b, off = a < b ? b - a : a - b;
         it[k].key = (lo >> 8) << 40 | off << 8 | (lo & 255);
         it[k].k = k;
     }
@@ -412,7 +580,7 @@ static psys_status springs_plan(springs *s)
     size_t nr = 0;
     for (size_t i = 0; i < S; i++) {
         size_t k = it[i].k;
-        uint32_t a = s->a[k], b = s->b[k], lo = a < b ? a : b, off = a < b ? b - a : a - b;
+        uint32_t a = SLOT_OF(s->a[k]), b = SLOT_OF(s->b[k]), lo = a < b ? a : b, off = a < b ? b - a : a - b;
         if (nr == 0 || off != p.run_off[nr - 1] || lo != p.run_lo[nr - 1] + p.run_len[nr - 1]
             || p.run_len[nr - 1] == SPRING_BLOCK) {
             p.run_lo[nr] = lo;
@@ -433,8 +601,12 @@ static psys_status springs_plan(springs *s)
         p.prest[i] = s->rest[k];
         p.pos[k] = i;
     }
+#undef SLOT_OF
     free(it);
+    free(slot);
     plan_free(s);
+    s->perm = perm;
+    s->perm_n = perm ? m : 0;
     s->run_lo = p.run_lo;
     s->run_off = p.run_off;
     s->run_len = p.run_len;
@@ -449,6 +621,24 @@ static psys_status springs_plan(springs *s)
     s->plan_ok = true;
     s->plan_version = s->version;
     s->part_t = 0;
+    return PSYS_OK;
+}
+
+/* The internal order extended to np particles (slot = particle beyond the
+ * springs' largest index). */
+static psys_status springs_cover(springs *s, size_t np)
+{
+    if (!s->perm || s->perm_n >= np)
+        return PSYS_OK;
+    if (np > UINT32_MAX)
+        return PSYS_ERR_NOMEM;
+    uint32_t *p = psys__realloc(s->perm, np, sizeof *p);
+    if (!p)
+        return PSYS_ERR_NOMEM;
+    for (size_t i = s->perm_n; i < np; i++)
+        p[i] = (uint32_t)i;
+    s->perm = p;
+    s->perm_n = np;
     return PSYS_OK;
 }
 
@@ -471,6 +661,8 @@ psys_status psys__springs_prepare_fused(springs *s, size_t np, int *T)
 psys_status psys__springs_prepare_rings(springs *s, size_t np, int T)
 {
     psys_status st = springs_plan(s);
+    if (st == PSYS_OK)
+        st = springs_cover(s, np);
     if (st != PSYS_OK)
         return st;
     /* A window holds a block of first particles, its runs' length and the
@@ -495,10 +687,12 @@ psys_status psys__springs_prepare_rings(springs *s, size_t np, int T)
 psys_status psys__springs_prepare(void *set)
 {
     springs *s = set;
+    size_t np = s->owner ? s->owner->n : 0;
     psys_status st = springs_plan(s);
+    if (st == PSYS_OK)
+        st = springs_cover(s, np);
     if (st != PSYS_OK)
         return st;
-    size_t np = s->owner ? s->owner->n : 0;
     if (np > s->soa_cap) {
         size_t cap = np + np / 8;
         if (cap > SIZE_MAX / (9 * sizeof(double)))
@@ -547,7 +741,7 @@ psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *
         for (int end = 0; end < 2; end++)
             for (size_t j = 0; j < len; j++) {
                 const size_t e = 2 * k_of[k + j] + (size_t)end;
-                ent[rowptr[(end ? hi : lo) + j]++] = (uint32_t)e;
+                ent[rowptr[psys__springs_particle(s, (end ? hi : lo) + j)]++] = (uint32_t)e;
                 seq[e] = place++;
             }
     }
@@ -609,7 +803,7 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
 {
     springs *s = data;
     const double *rest = rest_at(s, e->t);
-    if (springs_plan(s) != PSYS_OK || e->n > s->soa_cap) {
+    if (springs_plan(s) != PSYS_OK || e->n > s->soa_cap || (s->perm && s->perm_n < e->n)) {
         springs_plain(s, e, rest, f);
         return;
     }

@@ -64,6 +64,7 @@ typedef struct fused {
     const springs *s;
     size_t n, W, mask, S; /* ring slots (a power of 2) and row stride */
     const double *x, *v, *mass, *inv_mass; /* particle-major x, v (y's halves) */
+    const uint32_t *perm;                  /* the springs' internal order (slot -> particle), or NULL */
     double *xdot, *vdot;                   /* ydot's halves (no pass) */
     const psys_stage_pass *pass;           /* or the solver's work on ydot */
     size_t nd;
@@ -127,9 +128,39 @@ static inline void rows_at(double *rb, size_t S, int q, int d, size_t i0, double
         out[c] = c < d ? rb + (size_t)(q * d + c) * S + i0 : NULL;
 }
 
+/* enter() for slots [a, a + cnt) in the springs' internal order: x, v and
+ * the masses gathered particle by particle, in pieces of SPRING_BLOCK (the
+ * forces before the springs act on each particle alone). */
+static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    double m[SPRING_BLOCK];
+    for (size_t j0 = 0; j0 < cnt; j0 += SPRING_BLOCK) {
+        const size_t c = cnt - j0 < SPRING_BLOCK ? cnt - j0 : SPRING_BLOCK, i0 = (a + j0) & fz->mask;
+        double *X[3], *V[3], *F[3];
+        rows_at(rb, fz->S, 0, d, i0, X);
+        rows_at(rb, fz->S, 1, d, i0, V);
+        rows_at(rb, fz->S, 2, d, i0, F);
+        for (size_t j = 0; j < c; j++) {
+            const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
+            m[j] = fz->mass[p];
+            for (int k = 0; k < d; k++) {
+                X[k][j] = fz->x[pd + (size_t)k];
+                V[k][j] = fz->v[pd + (size_t)k];
+                F[k][j] = 0.0;
+            }
+        }
+        for (int k = 0; k < fz->npre; k++)
+            fz->pre[k].fn(fz->pre[k].data, d, c, m, (const double *const *)V, F);
+    }
+}
+
 /* Particles [a, a + cnt) enter the window (one contiguous piece of it). */
 static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
+    if (fz->perm) {
+        enter_perm(fz, rb, a, cnt, d);
+        return;
+    }
     const size_t i0 = a & fz->mask;
     double *X[3], *V[3], *F[3];
     rows_at(rb, fz->S, 0, d, i0, X);
@@ -220,10 +251,45 @@ static FUSED_INLINE void accel(const double *restrict im, const double *restrict
     }
 }
 
+/* leave() for slots [a, a + cnt) in the springs' internal order: each
+ * particle's derivative (or the solver's work on it) at its own place, the
+ * same expressions element by element. */
+static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    double m[SPRING_BLOCK], k[3];
+    for (size_t j0 = 0; j0 < cnt; j0 += SPRING_BLOCK) {
+        const size_t c = cnt - j0 < SPRING_BLOCK ? cnt - j0 : SPRING_BLOCK, i0 = (a + j0) & fz->mask;
+        double *V[3], *F[3];
+        rows_at(rb, fz->S, 1, d, i0, V);
+        rows_at(rb, fz->S, 2, d, i0, F);
+        for (size_t j = 0; j < c; j++)
+            m[j] = fz->mass[fz->perm[a + j0 + j]];
+        for (int q = 0; q < fz->npost; q++)
+            fz->post[q].fn(fz->post[q].data, d, c, m, (const double *const *)V, F);
+        for (size_t j = 0; j < c; j++) {
+            const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
+            accel(fz->inv_mass + p, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, 1, k, d);
+            if (!fz->pass) {
+                for (int q = 0; q < d; q++) {
+                    fz->xdot[pd + (size_t)q] = fz->v[pd + (size_t)q];
+                    fz->vdot[pd + (size_t)q] = k[q];
+                }
+            } else {
+                stage_apply(fz->pass, pd, fz->v + pd, (size_t)d); /* x' = v */
+                stage_apply(fz->pass, fz->nd + pd, k, (size_t)d);
+            }
+        }
+    }
+}
+
 /* Particles [a, a + cnt) leave the window: the forces after the springs,
  * then ydot = [v | f/m] (not-free particles, inv_mass 0, get exactly 0). */
 static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
+    if (fz->perm) {
+        leave_perm(fz, rb, a, cnt, d);
+        return;
+    }
     const size_t i0 = a & fz->mask;
     double *V[3], *F[3];
     rows_at(rb, fz->S, 1, d, i0, V);
@@ -496,6 +562,7 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *y, doubl
     fz->v = y + nd;
     fz->mass = sys->mass;
     fz->inv_mass = sys->inv_mass;
+    fz->perm = s->perm;
     fz->xdot = ydot;
     fz->vdot = ydot ? ydot + nd : NULL;
     fz->pass = pass;

@@ -45,6 +45,14 @@ typedef struct springs {
     double *pks, *pkd, *prest;            /* parameters in plan order */
     size_t *pos;                          /* plan slot of spring k */
     size_t max_off;                       /* largest run_off */
+    /* The internal order of the particles (springs_plan): slot i holds
+     * particle perm[i] (perm NULL: slot i is particle i). Runs, thread
+     * shares, windows and SoA rows count in slots. A function of the
+     * springs' ends alone, so a resumed run and every MPI rank get the same
+     * order. perm covers perm_n particles; beyond the springs' largest
+     * index, slot = particle (springs_cover extends it as particles come). */
+    uint32_t *perm;
+    size_t perm_n;
     /* Thread partition (springs_partition): thread t owns the particles
      * [P_t, P_t+1), P_t = ceil(t·np/T), and walks runs [rlo[t], rhi[t]),
      * every run touching a particle it owns. Recomputed when the plan, the
@@ -73,6 +81,9 @@ static inline size_t psys__part_first(size_t np, int T, int t)
 {
     return (size_t)(((uint64_t)t * np + (uint64_t)T - 1) / (uint64_t)T);
 }
+
+/* The particle in slot i. */
+static inline size_t psys__springs_particle(const springs *s, size_t i) { return s->perm ? s->perm[i] : i; }
 
 /* Row stride of a fused-derivative window of w slots: padded so that its 9
  * rows do not all fall into the same cache sets (w is a power of 2). */
