@@ -2,7 +2,8 @@
  * (bench/README.md explains the cases, the byte counts and the floor).
  *   cloth-N      the N×N sheet of ../shared/peers/ref_cloth.c (2 m × 2 m, 1 kg,
  *                structural + shear + bend springs, two corners pinned,
- *                gravity, drag), N = 100, 256, 1024 (any N from 2 to 4096 by name), dt = 1/sqrt(17.6 ks N²)
+ *                gravity, drag), N = 100, 256, 1024 (any N from 2 to 4096 by name), dt = 1/sqrt(17.6 ks N²);
+ *                cloth-N-shuffled: the same with its particles numbered at random
  *   rope-1000000 a rope of 10⁶ particles (structural springs), top end pinned
  *   lj-melt      the LAMMPS LJ melt, 32,000 atoms, grid pair force, verlet
  *   nbody-4096   4096 bodies, softened gravity, direct pair sums, verlet
@@ -91,37 +92,58 @@ static int evals_per_step(const char *integrator)
     return strcmp(integrator, "rk4") == 0 ? 4 : strcmp(integrator, "verlet") == 0 || strcmp(integrator, "midpoint") == 0 ? 2 : 1;
 }
 
-static psys_system *build_cloth(int n)
+/* The cloth-N sheet; with `shuffled`, its particles numbered in a random
+ * order (a fixed Fisher–Yates shuffle: the same on every machine), as a
+ * mesh exported by a tool that does not keep rows together comes. */
+static psys_system *build_cloth(int n, bool shuffled)
 {
+    const size_t np = (size_t)n * (size_t)n;
     psys_system *sys = psys_system_create(3, NULL);
-    if (!sys)
-        return NULL;
+    size_t *id = malloc(np * sizeof *id), *cell = malloc(np * sizeof *cell); /* cell -> particle -> cell */
+    if (!sys || !id || !cell)
+        goto fail;
+    for (size_t c = 0; c < np; c++)
+        id[c] = c;
+    uint64_t lcg = 12345;
+    for (size_t c = np - 1; shuffled && c > 0; c--) {
+        lcg = lcg * 6364136223846793005ULL + 1442695040888963407ULL;
+        size_t j = (size_t)((lcg >> 33) % (c + 1)), t = id[c];
+        id[c] = id[j];
+        id[j] = t;
+    }
+    for (size_t c = 0; c < np; c++)
+        cell[id[c]] = c;
     const double h = 2.0 / (n - 1), m = 1.0 / ((double)n * n), ks = 100.0, kd = 0.01 * sqrt(ks * m);
-    for (int iy = 0; iy < n; iy++)
-        for (int ix = 0; ix < n; ix++) {
-            double x[3] = {-1.0 + ix * h, 2.0, -1.0 + iy * h};
-            if (psys_system_add_particle(sys, x, NULL, m, NULL, NULL) != PSYS_OK)
-                goto fail;
-        }
+    for (size_t q = 0; q < np; q++) {
+        const int ix = (int)(cell[q] % (size_t)n), iy = (int)(cell[q] / (size_t)n);
+        double x[3] = {-1.0 + ix * h, 2.0, -1.0 + iy * h};
+        if (psys_system_add_particle(sys, x, NULL, m, NULL, NULL) != PSYS_OK)
+            goto fail;
+    }
     for (int iy = 0; iy < n; iy++)
         for (int ix = 0; ix < n; ix++) {
             size_t i = (size_t)iy * n + ix;
             psys_status st = PSYS_OK;
-            if (ix + 1 < n) st |= psys_system_add_spring(sys, i, i + 1, ks, kd, -1);
-            if (iy + 1 < n) st |= psys_system_add_spring(sys, i, i + n, ks, kd, -1);
-            if (ix + 1 < n && iy + 1 < n) st |= psys_system_add_spring(sys, i, i + n + 1, ks, kd, -1);
-            if (ix > 0 && iy + 1 < n) st |= psys_system_add_spring(sys, i, i + n - 1, ks, kd, -1);
-            if (ix + 2 < n) st |= psys_system_add_spring(sys, i, i + 2, 0.2 * ks, 0.2 * kd, -1);
-            if (iy + 2 < n) st |= psys_system_add_spring(sys, i, i + 2 * (size_t)n, 0.2 * ks, 0.2 * kd, -1);
+            if (ix + 1 < n) st |= psys_system_add_spring(sys, id[i], id[i + 1], ks, kd, -1);
+            if (iy + 1 < n) st |= psys_system_add_spring(sys, id[i], id[i + n], ks, kd, -1);
+            if (ix + 1 < n && iy + 1 < n) st |= psys_system_add_spring(sys, id[i], id[i + n + 1], ks, kd, -1);
+            if (ix > 0 && iy + 1 < n) st |= psys_system_add_spring(sys, id[i], id[i + n - 1], ks, kd, -1);
+            if (ix + 2 < n) st |= psys_system_add_spring(sys, id[i], id[i + 2], 0.2 * ks, 0.2 * kd, -1);
+            if (iy + 2 < n) st |= psys_system_add_spring(sys, id[i], id[i + 2 * (size_t)n], 0.2 * ks, 0.2 * kd, -1);
             if (st != PSYS_OK)
                 goto fail;
         }
     double g[3] = {0, -9.81, 0};
-    if (psys_system_set_fixed(sys, 0, true) != PSYS_OK || psys_system_set_fixed(sys, (size_t)n - 1, true) != PSYS_OK
-        || psys_system_add_gravity(sys, g) != PSYS_OK || psys_system_add_drag(sys, 0.05 * m) != PSYS_OK)
+    if (psys_system_set_fixed(sys, id[0], true) != PSYS_OK
+        || psys_system_set_fixed(sys, id[(size_t)n - 1], true) != PSYS_OK || psys_system_add_gravity(sys, g) != PSYS_OK
+        || psys_system_add_drag(sys, 0.05 * m) != PSYS_OK)
         goto fail;
+    free(id);
+    free(cell);
     return sys;
 fail:
+    free(id);
+    free(cell);
     psys_system_destroy(sys);
     return NULL;
 }
@@ -316,23 +338,27 @@ done:
     return rc;
 }
 
-/* N of a case named cloth-N, 2 ≤ N ≤ 4096 (the suite's sizes are 100, 256
- * and 1024; others find where paths cross over), else 0. */
-static int cloth_size(const char *name)
+/* N of a case named cloth-N or cloth-N-shuffled, 2 ≤ N ≤ 4096 (the
+ * suite's sizes are 100, 256 and 1024; others find where paths cross
+ * over), else 0; *shuffled tells which. */
+static int cloth_size(const char *name, bool *shuffled)
 {
     if (strncmp(name, "cloth-", 6) != 0 || !isdigit((unsigned char)name[6]))
         return 0;
     char *end;
     long n = strtol(name + 6, &end, 10);
-    return *end == '\0' && n >= 2 && n <= 4096 ? (int)n : 0;
+    *shuffled = strcmp(end, "-shuffled") == 0;
+    return (*end == '\0' || *shuffled) && n >= 2 && n <= 4096 ? (int)n : 0;
 }
 
 static int run_case(const char *name, const bench_opts *o)
 {
     const char *integ = o->integrator;
-    const int n = cloth_size(name);
+    bool shuffled;
+    const int n = cloth_size(name, &shuffled);
     if (n > 0)
-        return bench_system(name, build_cloth(n), integ ? integ : "rk4", 1.0 / sqrt(17.6 * 100.0 * (double)n * n), o);
+        return bench_system(name, build_cloth(n, shuffled), integ ? integ : "rk4",
+                            1.0 / sqrt(17.6 * 100.0 * (double)n * n), o);
     if (strcmp(name, "rope-1000000") == 0) {
         double dt = 0;
         psys_system *sys = build_rope(1000000, &dt);
@@ -402,19 +428,20 @@ int cmd_bench(int argc, char **argv)
             return EXIT_BAD_INPUT;
         }
     }
-    bool known = !which || cloth_size(which) > 0;
+    bool shuffled;
+    bool known = !which || cloth_size(which, &shuffled) > 0;
     for (int k = 0; which && case_names[k]; k++)
         known |= strcmp(which, case_names[k]) == 0;
     if (!known) {
         cli_error("bench: unknown case \"%s\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, "
-                  "nbody-4096; cloth-N for N in 2..4096)",
+                  "nbody-4096; cloth-N and cloth-N-shuffled for N in 2..4096)",
                   which);
         return EXIT_BAD_INPUT;
     }
     if (o.gbs < 0)
         o.gbs = triad_gbs();
     int rc = EXIT_OK;
-    if (which && cloth_size(which) > 0)
+    if (which && cloth_size(which, &shuffled) > 0)
         return run_case(which, &o);
     for (int k = 0; case_names[k]; k++) {
         if (which && strcmp(which, case_names[k]) != 0)

@@ -21,7 +21,7 @@ static const char usage[] =
     "                                   interactive viewer and editor (empty 2-D scene if none)\n"
     "  psys bench [CASE] [--integrator NAME] [--threads N] [--reps N] [--seconds S] [--steps N] [--bandwidth GBS]\n"
     "                                   benchmark cases (cloth-100, cloth-256, cloth-1024, rope-1000000,\n"
-    "                                   lj-melt, nbody-4096; cloth-N for N in 2..4096), JSON lines\n"
+    "                                   lj-melt, nbody-4096; cloth-N[-shuffled], N in 2..4096), JSON lines\n"
     "  psys import lammps FILE.data --out SCENE.json [--cutoff RC] [--skin S] [--shift]\n"
     "                 [--epsilon E --sigma S] [--dt H] [--steps N] [--integrator NAME]\n"
     "                                   scene from a LAMMPS data file (write_data; atom_style atomic)\n"

@@ -385,10 +385,14 @@ expect_stderr 'psys: --save needs a value (see psys --help)' "check --save witho
 psys bench cloth-8 --steps 1 --reps 1 --bandwidth 1
 expect_rc 0 "bench cloth-8"
 check "bench cloth-8 runs the 8x8 sheet" grep -q '"case":"cloth-8","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
-for name in cloth-1 cloth-4097 cloth-8x cloth- cloth--8; do
+psys bench cloth-8-shuffled --steps 1 --reps 1 --bandwidth 1
+expect_rc 0 "bench cloth-8-shuffled"
+check "bench cloth-8-shuffled runs the 8x8 sheet" \
+    grep -q '"case":"cloth-8-shuffled","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
+for name in cloth-1 cloth-4097 cloth-8x cloth- cloth--8 cloth-8-shuffledx cloth-shuffled cloth-1-shuffled; do
     psys bench "$name" --steps 1 --reps 1 --bandwidth 1
     expect_rc 2 "bench $name"
-    expect_stderr "psys: bench: unknown case \"$name\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, nbody-4096; cloth-N for N in 2..4096)" "bench $name"
+    expect_stderr "psys: bench: unknown case \"$name\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, nbody-4096; cloth-N and cloth-N-shuffled for N in 2..4096)" "bench $name"
     expect_stdout_empty "bench $name"
 done
 
