@@ -519,55 +519,25 @@ static uint32_t *cuthill_mckee(const springs *s, size_t m)
     return perm;
 }
 
-/* Build the plan for the current spring set (allocates; called before a
- * step through psys__springs_prepare, so failure is an error status). */
-static psys_status springs_plan(springs *s)
+/* The plan of s's springs with particle i in slot[i] (slot NULL: in slot
+ * i) into p's plan fields (allocated here; plan_free(p) on failure). */
+static psys_status plan_build(const springs *s, const uint32_t *slot, springs *p)
 {
-    if (s->plan_ok && s->plan_version == s->version)
-        return PSYS_OK;
     const size_t S = s->n, cap = S ? S : 1;
-    /* The internal order: the particles' own, unless the springs join
-     * particles far apart in it and the Cuthill–McKee order brings them at
-     * least twice as close on average (a mesh whose particles come shuffled:
-     * bench/README.md). */
-    uint32_t *perm = NULL, *slot = NULL;
-    size_t m = 0;
-    for (size_t k = 0; k < S; k++) {
-        m = s->a[k] + (size_t)1 > m ? s->a[k] + (size_t)1 : m;
-        m = s->b[k] + (size_t)1 > m ? s->b[k] + (size_t)1 : m;
-    }
-    if (S >= SPRING_ORDER_MIN) {
-        perm = cuthill_mckee(s, m);
-        slot = perm ? psys__calloc(m, sizeof *slot) : NULL;
-        if (!slot) {
-            free(perm);
-            return PSYS_ERR_NOMEM;
-        }
-        for (size_t i = 0; i < m; i++)
-            slot[perm[i]] = (uint32_t)i;
-        if (!(2 * mean_offset(s, slot) < mean_offset(s, NULL))) {
-            free(perm);
-            free(slot);
-            perm = slot = NULL;
-        }
-    }
     plan_item *it = psys__calloc(cap, sizeof *it);
-    springs p = {0};
-    p.run_lo = psys__calloc(cap, sizeof *p.run_lo);
-    p.run_off = psys__calloc(cap, sizeof *p.run_off);
-    p.run_len = psys__calloc(cap, sizeof *p.run_len);
-    p.run_k = psys__calloc(cap, sizeof *p.run_k);
-    p.run_uni = psys__calloc(cap, sizeof *p.run_uni);
-    p.pks = psys__calloc(cap, sizeof *p.pks);
-    p.pkd = psys__calloc(cap, sizeof *p.pkd);
-    p.prest = psys__calloc(cap, sizeof *p.prest);
-    p.pos = psys__calloc(cap, sizeof *p.pos);
-    if (!it || !p.run_lo || !p.run_off || !p.run_len || !p.run_k || !p.run_uni || !p.pks || !p.pkd || !p.prest
-        || !p.pos) {
+    p->run_lo = psys__calloc(cap, sizeof *p->run_lo);
+    p->run_off = psys__calloc(cap, sizeof *p->run_off);
+    p->run_len = psys__calloc(cap, sizeof *p->run_len);
+    p->run_k = psys__calloc(cap, sizeof *p->run_k);
+    p->run_uni = psys__calloc(cap, sizeof *p->run_uni);
+    p->pks = psys__calloc(cap, sizeof *p->pks);
+    p->pkd = psys__calloc(cap, sizeof *p->pkd);
+    p->prest = psys__calloc(cap, sizeof *p->prest);
+    p->pos = psys__calloc(cap, sizeof *p->pos);
+    if (!it || !p->run_lo || !p->run_off || !p->run_len || !p->run_k || !p->run_uni || !p->pks || !p->pkd
+        || !p->prest || !p->pos) {
         free(it);
-        free(slot);
-        free(perm);
-        plan_free(&p);
+        plan_free(p);
         return PSYS_ERR_NOMEM;
     }
 #define SLOT_OF(i) (slot ? slot[i] : (i))
@@ -578,35 +548,86 @@ static psys_status springs_plan(springs *s)
     }
     qsort(it, S, sizeof *it, plan_cmp);
     size_t nr = 0;
+    p->max_off = 0;
     for (size_t i = 0; i < S; i++) {
         size_t k = it[i].k;
         uint32_t a = SLOT_OF(s->a[k]), b = SLOT_OF(s->b[k]), lo = a < b ? a : b, off = a < b ? b - a : a - b;
-        if (nr == 0 || off != p.run_off[nr - 1] || lo != p.run_lo[nr - 1] + p.run_len[nr - 1]
-            || p.run_len[nr - 1] == SPRING_BLOCK) {
-            p.run_lo[nr] = lo;
-            p.run_off[nr] = off;
-            p.run_len[nr] = 0;
-            p.run_k[nr] = i;
-            p.run_uni[nr] = 1;
+        if (nr == 0 || off != p->run_off[nr - 1] || lo != p->run_lo[nr - 1] + p->run_len[nr - 1]
+            || p->run_len[nr - 1] == SPRING_BLOCK) {
+            p->run_lo[nr] = lo;
+            p->run_off[nr] = off;
+            p->run_len[nr] = 0;
+            p->run_k[nr] = i;
+            p->run_uni[nr] = 1;
             nr++;
-        } else if (memcmp(&s->ks[k], &p.pks[p.run_k[nr - 1]], sizeof(double))
-                   || memcmp(&s->kd[k], &p.pkd[p.run_k[nr - 1]], sizeof(double))) {
-            p.run_uni[nr - 1] = 0; /* not all the run's springs share ks and kd */
+        } else if (memcmp(&s->ks[k], &p->pks[p->run_k[nr - 1]], sizeof(double))
+                   || memcmp(&s->kd[k], &p->pkd[p->run_k[nr - 1]], sizeof(double))) {
+            p->run_uni[nr - 1] = 0; /* not all the run's springs share ks and kd */
         }
-        p.run_len[nr - 1]++;
-        if (off > p.max_off)
-            p.max_off = off;
-        p.pks[i] = s->ks[k];
-        p.pkd[i] = s->kd[k];
-        p.prest[i] = s->rest[k];
-        p.pos[k] = i;
+        p->run_len[nr - 1]++;
+        if (off > p->max_off)
+            p->max_off = off;
+        p->pks[i] = s->ks[k];
+        p->pkd[i] = s->kd[k];
+        p->prest[i] = s->rest[k];
+        p->pos[k] = i;
     }
 #undef SLOT_OF
     free(it);
-    free(slot);
+    p->nruns = nr;
+    return PSYS_OK;
+}
+
+/* Build the plan for the current spring set (allocates; called before a
+ * step through psys__springs_prepare, so failure is an error status). */
+static psys_status springs_plan(springs *s)
+{
+    if (s->plan_ok && s->plan_version == s->version)
+        return PSYS_OK;
+    const size_t S = s->n;
+    springs p = {0};
+    psys_status st = plan_build(s, NULL, &p);
+    if (st != PSYS_OK)
+        return st;
+    /* The internal order: the particles' own, unless it leaves the springs
+     * in runs shorter than SPRING_SHORT on average (no rows to stream: a
+     * mesh numbered out of order) and the Cuthill–McKee order brings them
+     * at least twice as close on average (bench/README.md). */
+    if (S >= SPRING_ORDER_MIN && p.nruns * SPRING_SHORT > S) {
+        size_t m = 0;
+        for (size_t k = 0; k < S; k++) {
+            m = s->a[k] + (size_t)1 > m ? s->a[k] + (size_t)1 : m;
+            m = s->b[k] + (size_t)1 > m ? s->b[k] + (size_t)1 : m;
+        }
+        uint32_t *perm = cuthill_mckee(s, m), *slot = perm ? psys__calloc(m, sizeof *slot) : NULL;
+        springs q = {0};
+        if (!slot) {
+            free(perm);
+            plan_free(&p);
+            return PSYS_ERR_NOMEM;
+        }
+        for (size_t i = 0; i < m; i++)
+            slot[perm[i]] = (uint32_t)i;
+        if (2 * mean_offset(s, slot) < mean_offset(s, NULL)) {
+            st = plan_build(s, slot, &q);
+            if (st != PSYS_OK) {
+                free(perm);
+                free(slot);
+                plan_free(&p);
+                return st;
+            }
+            plan_free(&p);
+            p = q;
+            p.perm = perm;
+            p.perm_n = m;
+        } else {
+            free(perm);
+        }
+        free(slot);
+    }
     plan_free(s);
-    s->perm = perm;
-    s->perm_n = perm ? m : 0;
+    s->perm = p.perm;
+    s->perm_n = p.perm_n;
     s->run_lo = p.run_lo;
     s->run_off = p.run_off;
     s->run_len = p.run_len;
@@ -616,7 +637,7 @@ static psys_status springs_plan(springs *s)
     s->pkd = p.pkd;
     s->prest = p.prest;
     s->pos = p.pos;
-    s->nruns = nr;
+    s->nruns = p.nruns;
     s->max_off = p.max_off;
     s->plan_ok = true;
     s->plan_version = s->version;

@@ -275,6 +275,19 @@ static void shuffled_same_physics(void)
     free(pi);
     psys_system_destroy(a);
     psys_system_destroy(b);
+    /* a strip of 300 columns in row order keeps it: its rows are long runs,
+     * though the order of its 4-particle columns would bring springs closer */
+    a = psys_system_create(3, NULL);
+    add_particles(a, 3, 300 * 4, 300);
+    sheet_springs(a, 0, 300, 4);
+    CHECK(psys_system_spring_count(a) >= 4096);
+    oa = psys_system_ode(a);
+    ya = malloc(oa.size * sizeof *ya);
+    oa.get_state(oa.ctx, ya);
+    free(generic_derivative(a, ya));
+    CHECK(order_of(a) == NULL);
+    free(ya);
+    psys_system_destroy(a);
 }
 
 /* The system's derivative_stage, counting the stages it computes. */
@@ -414,16 +427,15 @@ static void chain_same_bits(void)
             free(want);
         }
     /* By default only springs reaching at most 600 particles: the rope
-     * (offset 3 + 512), not a sheet of 150 columns (bend springs 300 apart:
-     * 300 + 512; under 4,096 springs, so no internal order shortens that);
+     * (offset 3 + 512), not a sheet of 300 columns (600 + 512);
      * PSYS_CHAIN=1 takes that too. */
     psys_system *s = rope(3000);
     psys_ode o = psys_system_ode(s);
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
     psys_system_destroy(s);
     s = psys_system_create(3, NULL);
-    add_particles(s, 3, 150 * 3, 150);
-    sheet_springs(s, 0, 150, 3);
+    add_particles(s, 3, 300 * 4, 300);
+    sheet_springs(s, 0, 300, 4);
     o = psys_system_ode(s);
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_ERR_UNSUPPORTED);
     setenv("PSYS_CHAIN", "1", 1);
