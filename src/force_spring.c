@@ -592,8 +592,11 @@ static psys_status springs_plan(springs *s)
     /* The internal order: the particles' own, unless it leaves the springs
      * in runs shorter than SPRING_SHORT on average (no rows to stream: a
      * mesh numbered out of order) and the Cuthill–McKee order brings them
-     * at least twice as close on average (bench/README.md). */
-    if (S >= SPRING_ORDER_MIN && p.nruns * SPRING_SHORT > S) {
+     * at least twice as close on average (bench/README.md).
+     * PSYS_SPRING_ORDER=0 in the environment keeps the particles' own
+     * (benchmarks compare the two). */
+    const char *env = getenv("PSYS_SPRING_ORDER");
+    if (S >= SPRING_ORDER_MIN && p.nruns * SPRING_SHORT > S && !(env && env[0] == '0')) {
         size_t m = 0;
         for (size_t k = 0; k < S; k++) {
             m = s->a[k] + (size_t)1 > m ? s->a[k] + (size_t)1 : m;

@@ -270,6 +270,13 @@ static void shuffled_same_physics(void)
         free(da);
         free(db);
     }
+    /* PSYS_SPRING_ORDER=0 keeps the particles' own order */
+    psys_system_destroy(b);
+    setenv("PSYS_SPRING_ORDER", "0", 1);
+    b = relabelled(a, pi);
+    free(generic_derivative(b, yb));
+    CHECK(order_of(b) == NULL);
+    unsetenv("PSYS_SPRING_ORDER");
     free(ya);
     free(yb);
     free(pi);
