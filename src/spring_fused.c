@@ -128,6 +128,15 @@ static inline void rows_at(double *rb, size_t S, int q, int d, size_t i0, double
         out[c] = c < d ? rb + (size_t)(q * d + c) * S + i0 : NULL;
 }
 
+/* How far ahead enter_perm and leave_perm fetch the particles they gather
+ * and scatter. */
+#define PERM_AHEAD 8
+#if defined(__GNUC__)
+#define PERM_PREFETCH(p) __builtin_prefetch(p)
+#else
+#define PERM_PREFETCH(p) ((void)(p))
+#endif
+
 /* enter() for slots [a, a + cnt) in the springs' internal order: x, v and
  * the masses gathered particle by particle, in pieces of SPRING_BLOCK (the
  * forces before the springs act on each particle alone). */
@@ -142,6 +151,12 @@ static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_
         rows_at(rb, fz->S, 2, d, i0, F);
         for (size_t j = 0; j < c; j++) {
             const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
+            if (j + PERM_AHEAD < c) { /* the particles come from all over memory */
+                const size_t pf = fz->perm[a + j0 + j + PERM_AHEAD] * (size_t)d;
+                PERM_PREFETCH(fz->x + pf);
+                PERM_PREFETCH(fz->v + pf);
+                PERM_PREFETCH(fz->mass + pf / (size_t)d);
+            }
             m[j] = fz->mass[p];
             for (int k = 0; k < d; k++) {
                 X[k][j] = fz->x[pd + (size_t)k];
@@ -262,12 +277,31 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
         double *V[3], *F[3];
         rows_at(rb, fz->S, 1, d, i0, V);
         rows_at(rb, fz->S, 2, d, i0, F);
-        for (size_t j = 0; j < c; j++)
+        for (size_t j = 0; j < c && fz->npost; j++)
             m[j] = fz->mass[fz->perm[a + j0 + j]];
         for (int q = 0; q < fz->npost; q++)
             fz->post[q].fn(fz->post[q].data, d, c, m, (const double *const *)V, F);
         for (size_t j = 0; j < c; j++) {
             const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
+            if (j + PERM_AHEAD < c) { /* the particles come from all over memory */
+                const psys_stage_pass *ps = fz->pass;
+                const size_t p2 = fz->perm[a + j0 + j + PERM_AHEAD], pf = p2 * (size_t)d;
+                PERM_PREFETCH(fz->inv_mass + p2);
+                PERM_PREFETCH(fz->v + pf);
+                if (!ps) {
+                    PERM_PREFETCH(fz->xdot + pf);
+                    PERM_PREFETCH(fz->vdot + pf);
+                } else {
+                    for (int half = 0; half < 2; half++) { /* x and v parts */
+                        const size_t h = half ? fz->nd : 0;
+                        PERM_PREFETCH(ps->base + h + pf);
+                        if (ps->next)
+                            PERM_PREFETCH(ps->next + h + pf);
+                        if (ps->acc)
+                            PERM_PREFETCH(ps->acc + h + pf);
+                    }
+                }
+            }
             accel(fz->inv_mass + p, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, 1, k, d);
             if (!fz->pass) {
                 for (int q = 0; q < d; q++) {
