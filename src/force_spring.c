@@ -436,6 +436,15 @@ static size_t bfs_levels(const size_t *xadj, const uint32_t *adj, uint32_t *seen
     return levels;
 }
 
+/* Adjacency lists longer than this are sorted by qsort in cuthill_mckee. */
+#define CM_SHORT_LIST 32
+
+static int cmp_u64(const void *p, const void *q)
+{
+    const uint64_t a = *(const uint64_t *)p, b = *(const uint64_t *)q;
+    return (a > b) - (a < b);
+}
+
 /* Cuthill–McKee order of particles [0, m) over the spring graph: component
  * by component (in order of their lowest particle), breadth first from a
  * pseudo-peripheral particle (George and Liu: the far level's particle of
@@ -469,8 +478,29 @@ static uint32_t *cuthill_mckee(const springs *s, size_t m)
             xadj[i] = xadj[i - 1];
         xadj[0] = 0;
     }
-    /* each list by increasing degree, then index (insertion sort: lists are short) */
+    /* each list by increasing degree, then index: insertion sort for the
+     * usual short lists, qsort of (degree, index) keys for long ones (a hub
+     * with thousands of springs) */
+    size_t most = 0;
     for (size_t i = 0; i < m; i++)
+        most = xadj[i + 1] - xadj[i] > most ? xadj[i + 1] - xadj[i] : most;
+    uint64_t *key = most > CM_SHORT_LIST ? psys__calloc(most, sizeof *key) : NULL;
+    if (most > CM_SHORT_LIST && !key) {
+        free(xadj), free(adj), free(seen), free(perm), free(q);
+        return NULL;
+    }
+    for (size_t i = 0; i < m; i++) {
+        if (xadj[i + 1] - xadj[i] > CM_SHORT_LIST) {
+            const size_t len = xadj[i + 1] - xadj[i];
+            for (size_t t = 0; t < len; t++) {
+                const uint32_t v = adj[xadj[i] + t];
+                key[t] = (uint64_t)(xadj[v + 1] - xadj[v]) << 32 | v;
+            }
+            qsort(key, len, sizeof *key, cmp_u64);
+            for (size_t t = 0; t < len; t++)
+                adj[xadj[i] + t] = (uint32_t)key[t];
+            continue;
+        }
         for (size_t e = xadj[i] + 1; e < xadj[i + 1]; e++) {
             const uint32_t v = adj[e];
             const size_t dv = xadj[v + 1] - xadj[v];
@@ -484,6 +514,8 @@ static uint32_t *cuthill_mckee(const springs *s, size_t m)
             }
             adj[f] = v;
         }
+    }
+    free(key);
     size_t n = 0;
     uint32_t mark = 0;
     for (size_t i = 0; i < m; i++) {

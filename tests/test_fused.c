@@ -150,6 +150,10 @@ static psys_system *build(int kind)
         size_t *pi = shuffled(psys_system_count(a));
         psys_system_destroy(s);
         s = relabelled(a, pi);
+        /* and a hub: particle 5 tied to 60 others (a list longer than
+         * cuthill_mckee's insertion sort takes) */
+        for (size_t k = 1; k <= 60; k++)
+            spring(s, 5, (5 + 47 * k) % psys_system_count(s));
         free(pi);
         psys_system_destroy(a);
         break;
@@ -255,6 +259,15 @@ static void shuffled_same_physics(void)
         double *db = fused ? fused_derivative(b, yb, 2) : generic_derivative(b, yb);
         CHECK(order_of(a) == NULL);
         CHECK(order_of(b) != NULL);
+        if (order_of(b)) { /* a permutation of the particles */
+            unsigned char *hit = calloc(n, 1);
+            for (size_t i = 0; i < n; i++)
+                if (order_of(b)[i] < n)
+                    hit[order_of(b)[i]]++;
+            for (size_t i = 0; i < n; i++)
+                CHECK(hit[i] == 1);
+            free(hit);
+        }
         double scale = 0, worst = 0;
         for (size_t h = 0; h < 2; h++) /* x' = v, then v' = f/m */
             for (size_t i = 0; i < n; i++)
