@@ -796,8 +796,11 @@ psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *
         const size_t lo = s->run_lo[r], hi = lo + s->run_off[r], len = s->run_len[r], k = s->run_k[r];
         for (int end = 0; end < 2; end++)
             for (size_t j = 0; j < len; j++) {
-                const size_t e = 2 * k_of[k + j] + (size_t)end;
-                ent[rowptr[psys__springs_particle(s, (end ? hi : lo) + j)]++] = (uint32_t)e;
+                /* the entry's parity names the end by particle index (in an
+                 * internal order the lower slot may hold the higher index) */
+                const size_t kk = k_of[k + j], p = psys__springs_particle(s, (end ? hi : lo) + j);
+                const size_t e = 2 * kk + (p == (s->a[kk] > s->b[kk] ? s->a[kk] : s->b[kk]));
+                ent[rowptr[p]++] = (uint32_t)e;
                 seq[e] = place++;
             }
     }

@@ -110,6 +110,35 @@ def cloth():
     return {"psys": 1, "dim": 3, "integrator": "rk4", "dt": 0.001, "steps": 40,
             "particles": parts, "structures": structs, "forces": forces}
 
+def cloth_shuffled():
+    # A 28x28 sheet whose particles are numbered at random (4,426 springs, no
+    # runs in that numbering): the spring set takes an internal order
+    # (src/force_spring.c), which every rank must find as the serial run does.
+    rnd = random.Random(5)
+    n = 28
+    ids = list(range(n * n))        # cell -> particle
+    rnd.shuffle(ids)
+    cell = [0] * (n * n)
+    for c, q in enumerate(ids):
+        cell[q] = c
+    h = 0.05
+    parts = []
+    for q in range(n * n):
+        c = cell[q]
+        p = {"x": [round(h * (c % n), 6), 0.0, round(-h * (c // n), 6)], "mass": 0.01}
+        if c in (0, n - 1):
+            p["fixed"] = True
+        parts.append(p)
+    forces = [{"type": "gravity", "g": [0, 0, -9.81]}]
+    for r in range(n):
+        for col in range(n):
+            for dx, dy, ks in ((1, 0, 800), (0, 1, 800), (1, 1, 800), (-1, 1, 800), (2, 0, 60), (0, 2, 60)):
+                if 0 <= col + dx < n and r + dy < n:
+                    forces.append({"type": "spring", "a": ids[r * n + col], "b": ids[(r + dy) * n + col + dx],
+                                   "ks": ks, "kd": 0.3})
+    return {"psys": 1, "dim": 3, "integrator": "rk4", "dt": 0.001, "steps": 40,
+            "particles": parts, "forces": forces}
+
 def polymer():
     # Bead-spring chains in a hot Lennard-Jones droplet in free space: pair
     # forces with migrations and springs across ranks together.
@@ -242,7 +271,7 @@ def hail():
 scenes = {"lj-grid": lj_box("grid", "lj-grid"), "lj-direct": lj_box("direct", "lj-direct"),
           "gravity-direct": galaxy("direct"), "gravity-bh": galaxy("barnes-hut"), "granular": granular(),
           "lj-melt": lj_melt(), "gas2d": gas2d(),
-          "cloth": cloth(), "polymer": polymer(), "arm": arm(), "crank": crank(), "hail": hail()}
+          "cloth": cloth(), "cloth-shuffled": cloth_shuffled(), "polymer": polymer(), "arm": arm(), "crank": crank(), "hail": hail()}
 for name, sc in scenes.items():
     with open(name + ".json", "w") as fp:
         json.dump(sc, fp, separators=(",", ":"))
