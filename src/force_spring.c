@@ -436,9 +436,6 @@ static size_t bfs_levels(const size_t *xadj, const uint32_t *adj, uint32_t *seen
     return levels;
 }
 
-/* Adjacency lists longer than this are sorted by qsort in cuthill_mckee. */
-#define CM_SHORT_LIST 32
-
 static int cmp_u64(const void *p, const void *q)
 {
     const uint64_t a = *(const uint64_t *)p, b = *(const uint64_t *)q;
@@ -478,42 +475,24 @@ static uint32_t *cuthill_mckee(const springs *s, size_t m)
             xadj[i] = xadj[i - 1];
         xadj[0] = 0;
     }
-    /* each list by increasing degree, then index: insertion sort for the
-     * usual short lists, qsort of (degree, index) keys for long ones (a hub
-     * with thousands of springs) */
+    /* each list by increasing degree, then index: (degree, index) keys */
     size_t most = 0;
     for (size_t i = 0; i < m; i++)
         most = xadj[i + 1] - xadj[i] > most ? xadj[i + 1] - xadj[i] : most;
-    uint64_t *key = most > CM_SHORT_LIST ? psys__calloc(most, sizeof *key) : NULL;
-    if (most > CM_SHORT_LIST && !key) {
+    uint64_t *key = psys__calloc(most ? most : 1, sizeof *key);
+    if (!key) {
         free(xadj), free(adj), free(seen), free(perm), free(q);
         return NULL;
     }
     for (size_t i = 0; i < m; i++) {
-        if (xadj[i + 1] - xadj[i] > CM_SHORT_LIST) {
-            const size_t len = xadj[i + 1] - xadj[i];
-            for (size_t t = 0; t < len; t++) {
-                const uint32_t v = adj[xadj[i] + t];
-                key[t] = (uint64_t)(xadj[v + 1] - xadj[v]) << 32 | v;
-            }
-            qsort(key, len, sizeof *key, cmp_u64);
-            for (size_t t = 0; t < len; t++)
-                adj[xadj[i] + t] = (uint32_t)key[t];
-            continue;
+        const size_t len = xadj[i + 1] - xadj[i];
+        for (size_t t = 0; t < len; t++) {
+            const uint32_t v = adj[xadj[i] + t];
+            key[t] = (uint64_t)(xadj[v + 1] - xadj[v]) << 32 | v;
         }
-        for (size_t e = xadj[i] + 1; e < xadj[i + 1]; e++) {
-            const uint32_t v = adj[e];
-            const size_t dv = xadj[v + 1] - xadj[v];
-            size_t f = e;
-            for (; f > xadj[i]; f--) {
-                const uint32_t u = adj[f - 1];
-                const size_t du = xadj[u + 1] - xadj[u];
-                if (du < dv || (du == dv && u <= v))
-                    break;
-                adj[f] = u;
-            }
-            adj[f] = v;
-        }
+        qsort(key, len, sizeof *key, cmp_u64);
+        for (size_t t = 0; t < len; t++)
+            adj[xadj[i] + t] = (uint32_t)key[t];
     }
     free(key);
     size_t n = 0;

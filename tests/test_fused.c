@@ -150,8 +150,7 @@ static psys_system *build(int kind)
         size_t *pi = shuffled(psys_system_count(a));
         psys_system_destroy(s);
         s = relabelled(a, pi);
-        /* and a hub: particle 5 tied to 60 others (a list longer than
-         * cuthill_mckee's insertion sort takes) */
+        /* and a hub: particle 5 tied to 60 others */
         for (size_t k = 1; k <= 60; k++)
             spring(s, 5, (5 + 47 * k) % psys_system_count(s));
         free(pi);
