@@ -237,7 +237,11 @@ void psys__springs_truncate(void *set, size_t n)
  * Each particle's force receives its springs' contributions in plan order
  * (run by run; in a run the first ends, then the second ends), whatever the
  * thread count. A spring with a > b is the same spring seen from b: l and
- * l̇ change sign, l·l̇ and |l| do not, so its force is the same to the bit. */
+ * l̇ change sign, l·l̇ and |l| do not, so its force is the same to the bit.
+ * "Particles" above are slots: a set numbered out of order gets an internal
+ * order first (springs_plan, perm), and the SoA copies and the fused window
+ * gather and scatter through it; runs shorter than SPRING_SHORT go through
+ * run_short instead of the vector loops. */
 
 /* Runs r0..r1-1 into the SoA forces Fs; with `owned`, only the ends in
  * particles [P, Q). Per particle and component the contributions arrive in
