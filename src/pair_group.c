@@ -27,6 +27,7 @@
 
 #include <stddef.h>
 #include <stdlib.h>
+#include <string.h>
 
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__)
 #define PSYS_GROUP_AVX2 1
@@ -67,8 +68,8 @@ static void group_row_alone(const pair_force *p, const pair_image *m, const doub
 
 /* The loops' constants, one vector of equal lanes each (V: __m256d or
  * __m512d); the eight-lane set is the four-lane one widened (group8_consts_of). */
-#define GROUP_CONST_FIELDS(V) V hl[3], ln[3], fr[3], sign, rc2, zero, one, two, sig2, lj24, kc, radius
-#define GROUP_NCONST 18
+#define GROUP_CONST_FIELDS(V) V hl[3], ln[3], fr[3], sign, rc2, rcbits, zero, one, two, sig2, lj24, kc, radius
+#define GROUP_NCONST 19
 
 typedef struct group_consts {
     union {
@@ -273,6 +274,12 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
     c->one = _mm256_set1_pd(1.0);
     c->two = _mm256_set1_pd(2.0);
     c->rc2 = _mm256_set1_pd(p->rc2);
+    /* group8_kernel's test of 0 < r² < rc²: the bits of rc² less one (0:
+     * no cutoff, nothing inside, as the comparisons give) */
+    uint64_t rb = 0;
+    if (p->rc2 > 0)
+        memcpy(&rb, &p->rc2, sizeof rb), rb -= 1;
+    c->rcbits = _mm256_castsi256_pd(_mm256_set1_epi64x((long long)rb));
     c->sig2 = _mm256_set1_pd(p->sig2);
     c->lj24 = _mm256_set1_pd(p->lj24);
     c->kc = _mm256_set1_pd(p->kc);
@@ -326,8 +333,12 @@ AVX512 static inline __m512d group8_delta(const group8_consts *c, int k, __m512d
  * the masked g of the row kernel, two instructions fewer per entry. */
 AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law, __m512d r2)
 {
-    const __mmask8 in = _mm512_cmp_pd_mask(r2, c->rc2, _CMP_LT_OQ)
-                        & _mm512_cmp_pd_mask(r2, _mm512_setzero_pd(), _CMP_GT_OQ);
+    /* 0 < r² < rc² as one unsigned comparison of the bits less one: +0
+     * wraps to the largest number, -0, NaN and r² ≥ rc² (positive doubles
+     * order as their bits) lie above, so the same mask as the two
+     * comparisons of pair_kernel, one instruction fewer */
+    const __mmask8 in = _mm512_cmplt_epu64_mask(_mm512_sub_epi64(_mm512_castpd_si512(r2), _mm512_set1_epi64(1)),
+                                                _mm512_castpd_si512(c->rcbits));
     if (law == PSYS_PAIR_LENNARD_JONES || law == GROUP8_LJ_UNIT) {
         /* σ² = 1 (reduced units): σ²·(1/r²) is 1/r² exactly; 2·s⁶ as s⁶ + s⁶,
          * also exact, leaves the busier multiplier */
