@@ -682,6 +682,64 @@ static void grid_partial_matches_direct(void)
     }
 }
 
+/* The sparse partial loop (pair_group.c: the marked rows eight at a time
+ * wherever they lie, their lists interleaved on the fly; where most rows of
+ * the touched groups are marked, the groups as they are): 4,913 particles,
+ * two spans of 4,096 rows, one and two threads. Rounds alternate between
+ * scattered moves in the second span (one through a face) and a block of
+ * 600 consecutive particles in the first; after each, the forces equal
+ * those of a system built afresh at the same positions (a full evaluation)
+ * bit for bit. */
+static void grid_partial_sparse_groups(void)
+{
+    const size_t side = 17, n = side * side * side;
+    const double L = 0.2 * (double)side, lo[3] = {0, 0, 0}, hi[3] = {L, L, L};
+    const bool per[3] = {true, true, true};
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = 0.1;
+    def.epsilon = 0.01;
+    def.cutoff = 0.3;
+    def.skin = 0.05;
+    def.method = PSYS_PAIR_GRID;
+    for (int threads = 1; threads <= 2; threads++) {
+        urand_seed(13);
+        psys_system *a = jittered_lattice(3, n, 0.2, 0.02, false);
+        CHECK(psys_system_set_box(a, lo, hi, per) == PSYS_OK);
+        add_pair(a, &def);
+        CHECK(psys_system_set_threads(a, threads) == PSYS_OK);
+        for (int round = 0; round < 6; round++) {
+            double *fa = forces_of(a);
+            psys_system *b = make_system(3);
+            for (size_t i = 0; i < n; i++)
+                add_particle(b, psys_system_positions(a) + 3 * i, NULL, 1.0);
+            CHECK(psys_system_set_box(b, lo, hi, per) == PSYS_OK);
+            add_pair(b, &def);
+            CHECK(psys_system_set_threads(b, threads) == PSYS_OK);
+            double *fb = forces_of(b);
+            CHECK(memcmp(fa, fb, 3 * n * sizeof(double)) == 0);
+            free(fa);
+            free(fb);
+            psys_system_destroy(b);
+            const size_t count = round % 2 ? 600 : 15;
+            for (size_t q = 0; q < count; q++) {
+                const size_t i = round % 2 ? q : 4100 + 53 * q;
+                double x[3];
+                memcpy(x, psys_system_positions(a) + 3 * i, sizeof x);
+                for (int k = 0; k < 3; k++)
+                    x[k] += urand(-0.004, 0.004);
+                if (q == 0 && !(round % 2))
+                    x[0] += x[0] < 0.5 * L ? L : -L;
+                CHECK(psys_system_set_particle(a, i, x, NULL) == PSYS_OK);
+            }
+        }
+        psys_pair_stats st;
+        CHECK(psys_system_pair_stats(a, 0, &st) == PSYS_OK);
+        CHECK(st.partial >= 3 && st.fallbacks == 0);
+        psys_system_destroy(a);
+    }
+}
+
 /* A particle taken through a face by exactly one box length, as the wrap
  * after a step does: in the box [0, 2) its differences to the partners it
  * leaves behind the face keep their bits (their coordinates lie in [1, 2),
@@ -1710,6 +1768,7 @@ static const check_case cases[] = {
     {"grid_cache_matches_direct", grid_cache_matches_direct},
     {"grid_partial_matches_direct", grid_partial_matches_direct},
     {"grid_partial_keeps_unchanged_rows", grid_partial_keeps_unchanged_rows},
+    {"grid_partial_sparse_groups", grid_partial_sparse_groups},
     {"minimum_image", minimum_image},
     {"minimum_image_far", minimum_image_far},
     {"minimum_image_far_groups", minimum_image_far_groups},
