@@ -152,10 +152,10 @@ static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_
         for (size_t j = 0; j < c; j++) {
             const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
             if (j + PERM_AHEAD < c) { /* the particles come from all over memory */
-                const size_t pf = fz->perm[a + j0 + j + PERM_AHEAD] * (size_t)d;
+                const size_t p2 = fz->perm[a + j0 + j + PERM_AHEAD], pf = p2 * (size_t)d;
                 PERM_PREFETCH(fz->x + pf);
                 PERM_PREFETCH(fz->v + pf);
-                PERM_PREFETCH(fz->mass + pf / (size_t)d);
+                PERM_PREFETCH(fz->mass + p2);
             }
             m[j] = fz->mass[p];
             for (int k = 0; k < d; k++) {
