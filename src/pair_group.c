@@ -457,17 +457,14 @@ AVX512 __attribute__((always_inline)) static inline bool group8_rows(const group
                 group8_entry(c, law, d, mode, in->Q, buf + (size_t)GROUP8 * q, xi, live, a, &far);
             }
         }
-        _mm512_storeu_pd(s[0], a[0]);
-        _mm512_storeu_pd(s[1], a[1]);
-        _mm512_storeu_pd(s[2], a[2]);
-        return far != 0;
+    } else {
+        uint32_t k = 0;
+        for (; k < full; k++)
+            group8_entry(c, law, d, mode, in->Q, in->il + (size_t)GROUP8 * k, xi, (__mmask8)0xff, a, &far);
+        for (; k < len; k++)
+            group8_entry(c, law, d, mode, in->Q, in->il + (size_t)GROUP8 * k, xi,
+                         _mm256_cmpgt_epi32_mask(num, _mm256_set1_epi32((int)k)), a, &far);
     }
-    uint32_t k = 0;
-    for (; k < full; k++)
-        group8_entry(c, law, d, mode, in->Q, in->il + (size_t)GROUP8 * k, xi, (__mmask8)0xff, a, &far);
-    for (; k < len; k++)
-        group8_entry(c, law, d, mode, in->Q, in->il + (size_t)GROUP8 * k, xi,
-                     _mm256_cmpgt_epi32_mask(num, _mm256_set1_epi32((int)k)), a, &far);
     _mm512_storeu_pd(s[0], a[0]);
     _mm512_storeu_pd(s[1], a[1]);
     _mm512_storeu_pd(s[2], a[2]);

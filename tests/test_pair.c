@@ -736,6 +736,7 @@ static void grid_partial_sparse_groups(void)
         psys_pair_stats st;
         CHECK(psys_system_pair_stats(a, 0, &st) == PSYS_OK);
         CHECK(st.partial >= 3 && st.fallbacks == 0);
+        CHECK(group_loops_run() ? st.grouped > 0 : st.grouped == 0);
         psys_system_destroy(a);
     }
 }
