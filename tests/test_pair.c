@@ -741,6 +741,46 @@ static void grid_partial_sparse_groups(void)
     }
 }
 
+/* A pair at exactly the cutoff adds nothing in the vector loops (the
+ * eight-lane loop tests 0 < r² < rc² on the bits): 16 particles on a line,
+ * 0 and 1 at r = rc = 0.5 (r² = rc² exactly), 2 and 3 at 0.49, the others
+ * far apart. Grid equals direct bit for bit; particles 0 and 1 feel no
+ * force, 2 and 3 opposite ones. */
+static void cutoff_boundary_groups(void)
+{
+    psys_system *sys[2];
+    for (int q = 0; q < 2; q++) {
+        sys[q] = make_system(3);
+        for (int i = 0; i < 16; i++) {
+            double x[3] = {2.0 * i, 0, 0};
+            if (i == 1)
+                x[0] = 0.5;
+            if (i == 3)
+                x[0] = 4.0 + 0.49;
+            add_particle(sys[q], x, NULL, 1.0);
+        }
+        psys_pair_def def = psys_pair_def_default();
+        def.law = PSYS_PAIR_LENNARD_JONES;
+        def.sigma = 0.45;
+        def.epsilon = 0.01;
+        def.cutoff = 0.5;
+        def.skin = 0.1;
+        def.method = q ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID;
+        add_pair(sys[q], &def);
+    }
+    check_same_forces(sys[0], sys[1]);
+    double *f = forces_of(sys[0]);
+    for (int k = 0; k < 3; k++)
+        CHECK(f[k] == 0 && f[3 + k] == 0);
+    CHECK(f[6] != 0 && f[9] == -f[6]);
+    free(f);
+    psys_pair_stats st;
+    CHECK(psys_system_pair_stats(sys[0], 0, &st) == PSYS_OK);
+    CHECK(group_loops_run() ? st.grouped > 0 : st.grouped == 0);
+    psys_system_destroy(sys[0]);
+    psys_system_destroy(sys[1]);
+}
+
 /* A particle taken through a face by exactly one box length, as the wrap
  * after a step does: in the box [0, 2) its differences to the partners it
  * leaves behind the face keep their bits (their coordinates lie in [1, 2),
@@ -1770,6 +1810,7 @@ static const check_case cases[] = {
     {"grid_partial_matches_direct", grid_partial_matches_direct},
     {"grid_partial_keeps_unchanged_rows", grid_partial_keeps_unchanged_rows},
     {"grid_partial_sparse_groups", grid_partial_sparse_groups},
+    {"cutoff_boundary_groups", cutoff_boundary_groups},
     {"minimum_image", minimum_image},
     {"minimum_image_far", minimum_image_far},
     {"minimum_image_far_groups", minimum_image_far_groups},
