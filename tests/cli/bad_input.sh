@@ -385,10 +385,14 @@ expect_stderr 'psys: --save needs a value (see psys --help)' "check --save witho
 psys bench cloth-8 --steps 1 --reps 1 --bandwidth 1
 expect_rc 0 "bench cloth-8"
 check "bench cloth-8 runs the 8x8 sheet" grep -q '"case":"cloth-8","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
+# rows of 8: springs 1, 2, 7, 8, 9 and 16 apart, 2152 in all over 306 springs
+check "bench cloth-8 numbers the sheet by rows" grep -q '"mean_spring_index_gap":7.0}$' out.txt
 psys bench cloth-8-shuffled --steps 1 --reps 1 --bandwidth 1
 expect_rc 0 "bench cloth-8-shuffled"
 check "bench cloth-8-shuffled runs the 8x8 sheet" \
     grep -q '"case":"cloth-8-shuffled","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
+# the fixed shuffle scatters the same springs' ends (random pairs of 64: about 21 apart)
+check "bench cloth-8-shuffled numbers the sheet at random" grep -q '"mean_spring_index_gap":20.6}$' out.txt
 for name in cloth-1 cloth-4097 cloth-8x cloth- cloth--8 cloth-8-shuffledx cloth-shuffled cloth-1-shuffled; do
     psys bench "$name" --steps 1 --reps 1 --bandwidth 1
     expect_rc 2 "bench $name"
