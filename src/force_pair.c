@@ -30,14 +30,22 @@
 #define DIRECT_IB 16   /* particles i per block */
 #define DIRECT_JB 512  /* partners j per block */
 
-/* The vectorised pair loops (pair_row_forces) are also built for AVX2 and
- * AVX-512 on x86-64 with GCC (4 or 8 pairs per instruction), chosen at load
- * time; no FMA, sqrt and division correctly rounded: the same bits on every
- * path. */
+/* The vectorised pair loops (pair_row_forces) are also built for AVX-512
+ * and for x86-64-v3 (AVX2 with FMA) on x86-64 with GCC (8 or 4 pairs per
+ * instruction), chosen at load time; the fused multiply-adds of
+ * pair_force_r2 and the sums are single instructions there (libm's fma in
+ * the default build), sqrt and division correctly rounded: the same bits on
+ * every path. */
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__linux__)
-#define PAIR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#define PAIR_CLONES __attribute__((target_clones("avx512f", "arch=x86-64-v3", "default")))
+/* The scalar force loops (user laws, the half-list sweep, fallbacks),
+ * built again for x86-64-v3 so that their fused multiply-adds are
+ * instructions rather than calls to libm's fma (5 × slower for the direct
+ * method with a user law, measured). */
+#define PAIR_FMA_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define PAIR_CLONES
+#define PAIR_FMA_CLONES
 #endif
 
 psys_pair_def psys_pair_def_default(void)
@@ -235,6 +243,12 @@ VEC_VARIANTS(DBLOCK_FN, dblock)
 static const dblock_fn dblock_fns[4][2] = VEC_TABLE(dblock);
 
 #define DIRECT_FN(name, LAW, D, WF, WU)                                                                      \
+    PAIR_FMA_CLONES static void name##_block(const pair_force *p, const pair_image *m, const double *x,      \
+                                             const double *w, size_t n, size_t b, double *f, double *ep,     \
+                                             double *total, const unsigned char *mark)                       \
+    {                                                                                                        \
+        direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark, false);                           \
+    }                                                                                                        \
     static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
                      double *f, double *ep, double *total, int nt, const unsigned char *mark, bool vec)      \
     {                                                                                                        \
@@ -246,7 +260,7 @@ static const dblock_fn dblock_fns[4][2] = VEC_TABLE(dblock);
             if (fast)                                                                                        \
                 fast(p, m, x, w, n, b, f, mark);                                                             \
             else                                                                                             \
-                direct_block(p, LAW, D, m, x, w, n, b, WF, f, WU, ep, total, mark, false);                   \
+                name##_block(p, m, x, w, n, b, f, ep, total, mark);                                          \
         }                                                                                                    \
     }
 
@@ -255,15 +269,15 @@ static const dblock_fn dblock_fns[4][2] = VEC_TABLE(dblock);
 typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
                         const unsigned char *mark, double *out, int nt);
 
+#define GRID_CHUNK 64 /* rows per parallel task */
 #define GRID_FN(name, LAW, D, WF, WU)                                                                        \
-    static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
-                     const unsigned char *mark, double *out, int nt)                                         \
+    PAIR_FMA_CLONES static void name##_rows(const pair_force *p, const pair_image *m, const double *x,       \
+                                            const double *w, size_t i0, size_t i1, const unsigned char *mark, \
+                                            double *out)                                                     \
     {                                                                                                        \
         const size_t *st = p->grid.nb_start;                                                                 \
         const uint32_t *num = p->grid.nb_num, *nb = p->grid.nb;                                              \
-        (void)nt;                                                                                            \
-        PSYS_OMP(omp parallel for schedule(dynamic, 64) num_threads(nt) if (nt > 1))                         \
-        for (size_t i = 0; i < n; i++) {                                                                     \
+        for (size_t i = i0; i < i1; i++) {                                                                   \
             if (mark && !mark[i])                                                                            \
                 continue;                                                                                    \
             double acc[3] = {0, 0, 0}, us = 0;                                                               \
@@ -274,6 +288,16 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
             if (WU)                                                                                          \
                 out[i] = us;                                                                                 \
         }                                                                                                    \
+    }                                                                                                        \
+    static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
+                     const unsigned char *mark, double *out, int nt)                                         \
+    {                                                                                                        \
+        const size_t nchunks = (n + GRID_CHUNK - 1) / GRID_CHUNK;                                            \
+        (void)nt;                                                                                            \
+        PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))                          \
+        for (size_t c = 0; c < nchunks; c++)                                                                 \
+            name##_rows(p, m, x, w, c * GRID_CHUNK, c * GRID_CHUNK + GRID_CHUNK < n ? c * GRID_CHUNK + GRID_CHUNK : n, \
+                        mark, out);                                                                          \
     }
 
 /* Grid forces of rows [i0, i1) (all, or the marked ones) through
@@ -331,7 +355,7 @@ static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const
  * bits. With mark, only marked particles' entries of out are recomputed
  * (pairs with no marked end are skipped); the others are left as they are. */
 #define HALF_FN(name, LAW, D, WF, WU)                                                                        \
-    static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
+    PAIR_FMA_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
                      const unsigned char *mark, double *out, int nt)                                         \
     {                                                                                                        \
         if (mark)                                                                                            \
@@ -372,19 +396,19 @@ PAIR_INLINE void half_sweep(const pair_force *p, const int LAW, const int D, con
             const bool mj = !mark || mark[j];
             if (!mi && !mj)
                 continue;
-            double dx[3], r2 = 0, u = 0;
-            for (int k = 0; k < D; k++) {
+            double dx[3] = {0, 0, 0}, u = 0;
+            for (int k = 0; k < D; k++)
                 dx[k] = pair_delta(m, k, xi[k] - x[j * D + k]);
-                r2 += dx[k] * dx[k];
-            }
+            const double r2 = WF ? pair_force_r2(D, dx[0], dx[1], dx[2]) : pair_plain_r2(D, dx[0], dx[1], dx[2]);
             double g = pair_kernel(p, LAW, r2, w ? wi * w[j] : 1.0, WU, &u);
             if (WF)
                 for (int k = 0; k < D; k++) {
-                    double c = g * dx[k];
+                    /* j's term is g·(-dx), fused as the gather over j's
+                     * own list fuses it */
                     if (mi)
-                        a[k] += c;
+                        a[k] = fma(g, dx[k], a[k]);
                     if (mj)
-                        out[j * D + k] -= c;
+                        out[j * D + k] = fma(-g, dx[k], out[j * D + k]);
                 }
             if (WU) {
                 if (mi)

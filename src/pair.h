@@ -259,6 +259,33 @@ PAIR_INLINE double pair_kernel(const pair_force *p, const int law, double r2, do
     }
 }
 
+/* A pair's force terms, formed the same way on every path (the scalar
+ * loops here, the row loops built for AVX2 and AVX-512, pair_group.c's four-
+ * and eight-lane loops): r² is dx0², then dx1² and dx2² each fused into the
+ * sum, and each term g·dx_k is fused into its running sum. A fused
+ * multiply-add rounds once where a product and a sum round twice; it is
+ * correctly rounded wherever it runs (one instruction where the CPU has FMA,
+ * libm's fma elsewhere), so every path keeps giving the same bits, and the
+ * vector loops spend five instructions fewer per pair. Energies, Barnes–Hut
+ * and the Jacobian keep plain products and sums: nothing compares them bit
+ * for bit with the forces. */
+PAIR_INLINE double pair_force_r2(const int d, double dx0, double dx1, double dx2)
+{
+    const double r2 = fma(dx1, dx1, dx0 * dx0);
+    return d == 3 ? fma(dx2, dx2, r2) : r2;
+}
+
+/* r² for energies (and the other plain paths): the sum of the products. */
+PAIR_INLINE double pair_plain_r2(const int d, double dx0, double dx1, double dx2)
+{
+    double r2 = 0;
+    r2 += dx0 * dx0;
+    r2 += dx1 * dx1;
+    if (d == 3)
+        r2 += dx2 * dx2;
+    return r2;
+}
+
 /* Gather over an ascending list js[0..nj) for particle i: force sum into
  * acc (dim numbers, not cleared) and energy sum into *uacc. w: per-particle
  * weights (NULL = 1). */
@@ -273,16 +300,15 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
     const double wi = w ? w[i] : 1.0;
     for (size_t t = 0; t < nj; t++) {
         size_t j = js[t];
-        double dx[3], r2 = 0;
-        for (int k = 0; k < d; k++) {
+        double dx[3] = {0, 0, 0};
+        for (int k = 0; k < d; k++)
             dx[k] = pair_delta(m, k, xi[k] - x[j * d + k]);
-            r2 += dx[k] * dx[k];
-        }
+        const double r2 = want_f ? pair_force_r2(d, dx[0], dx[1], dx[2]) : pair_plain_r2(d, dx[0], dx[1], dx[2]);
         double u = 0;
         double g = pair_kernel(p, law, r2, w ? wi * w[j] : 1.0, want_u, &u);
         if (want_f)
             for (int k = 0; k < d; k++)
-                a[k] += g * dx[k];
+                a[k] = fma(g, dx[k], a[k]);
         if (want_u)
             us += u;
     }
@@ -293,7 +319,7 @@ PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int 
 
 #define ROW_BLOCK 128 /* partners per pass of pair_row_forces */
 
-/* Pass one of pair_row_forces over partners t < nb: c_k[t] = g·dx_k. With
+/* Pass one of pair_row_forces over partners t < nb: cg[t] = g, c_k[t] = dx_k. With
  * exact false the minimum image takes the one-box shortcut, and the return
  * value says whether some |dx| reached 1.5 boxes (then the caller runs the
  * block again with exact: the shortcut is pair_delta wherever it is used). */
@@ -301,7 +327,8 @@ PAIR_INLINE bool pair_row_terms(const pair_force *pk, const int law, const int d
                                 const double *restrict X1, const double *restrict X2, const double *restrict w,
                                 size_t i, const uint32_t *restrict jb, size_t jr, size_t nb, const bool list,
                                 const double *hl, const double *ln, const double *il, const double *fr,
-                                double *restrict c0, double *restrict c1, double *restrict c2, const bool exact)
+                                double *restrict cg, double *restrict c0, double *restrict c1, double *restrict c2,
+                                const bool exact)
 {
     const double xi0 = X0[i], xi1 = X1[i], xi2 = d == 3 ? X2[i] : 0;
     const bool weighted = law == PSYS_PAIR_GRAVITY || law == PSYS_PAIR_COULOMB;
@@ -314,26 +341,22 @@ PAIR_INLINE bool pair_row_terms(const pair_force *pk, const int law, const int d
             far |= (fabs(e0) >= fr[0]) | (fabs(e1) >= fr[1]) | (d == 3 && fabs(e2) >= fr[2]);
         double dx0 = pair_delta_folded(hl[0], ln[0], il[0], fr[0], e0, exact);
         double dx1 = pair_delta_folded(hl[1], ln[1], il[1], fr[1], e1, exact), dx2 = 0;
-        double r2 = 0;
-        r2 += dx0 * dx0;
-        r2 += dx1 * dx1;
-        if (d == 3) {
-            dx2 = pair_delta_folded(hl[2], ln[2], il[2], fr[2], e2, exact);
-            r2 += dx2 * dx2;
-        }
-        double u;
-        double g = pair_kernel(pk, law, r2, weighted ? wi * w[j] : 1.0, false, &u);
-        c0[t] = g * dx0;
-        c1[t] = g * dx1;
         if (d == 3)
-            c2[t] = g * dx2;
+            dx2 = pair_delta_folded(hl[2], ln[2], il[2], fr[2], e2, exact);
+        const double r2 = pair_force_r2(d, dx0, dx1, dx2);
+        double u;
+        cg[t] = pair_kernel(pk, law, r2, weighted ? wi * w[j] : 1.0, false, &u);
+        c0[t] = dx0;
+        c1[t] = dx1;
+        if (d == 3)
+            c2[t] = dx2;
     }
     return far != 0;
 }
 
 /* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
- * partners: the pair forces g·dx, computed independently (the loop
- * vectorises), then their sum in list order. The operations per pair and
+ * partners: each pair's g and dx, computed independently (the loop
+ * vectorises), then the terms g·dx fused into the sums in list order. The operations per pair and
  * the order of the sum are those of pair_gather_list, so the bits are the
  * same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
  * the index range [j0, j0 + nj) without i (pair_gather_range's sum).
@@ -346,7 +369,7 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
     /* positions from the SoA copy (pair_soa_positions): a partner's three
      * coordinates are three plain indexed loads, no index arithmetic */
     const double *restrict X0 = p->xsoa, *restrict X1 = X0 + p->cap, *restrict X2 = X1 + p->cap;
-    double c0[ROW_BLOCK], c1[ROW_BLOCK], c2[ROW_BLOCK];
+    double cg[ROW_BLOCK], c0[ROW_BLOCK], c1[ROW_BLOCK], c2[ROW_BLOCK];
     /* The kernel's constants in a local object: always safe to load, so the
      * compiler may evaluate both sides of the kernel's selects. */
     pair_force pk;
@@ -365,21 +388,21 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
         const size_t nb = nj - t0 < ROW_BLOCK ? nj - t0 : ROW_BLOCK;
         const uint32_t *restrict jb = list ? js + t0 : NULL;
         const size_t jr = j0 + t0;
-        if (pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, c0, c1, c2, false))
-            pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, c0, c1, c2, true);
+        if (pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, cg, c0, c1, c2, false))
+            pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, cg, c0, c1, c2, true);
         /* a range holding i sums around it, as pair_gather_range skips it */
         const size_t skip = !list && i >= jr && i < jr + nb ? i - jr : nb;
         for (size_t t = 0; t < skip; t++) {
-            a0 += c0[t];
-            a1 += c1[t];
+            a0 = fma(cg[t], c0[t], a0);
+            a1 = fma(cg[t], c1[t], a1);
             if (d == 3)
-                a2 += c2[t];
+                a2 = fma(cg[t], c2[t], a2);
         }
         for (size_t t = skip + 1; t < nb; t++) {
-            a0 += c0[t];
-            a1 += c1[t];
+            a0 = fma(cg[t], c0[t], a0);
+            a1 = fma(cg[t], c1[t], a1);
             if (d == 3)
-                a2 += c2[t];
+                a2 = fma(cg[t], c2[t], a2);
         }
     }
     acc[0] = a0;
@@ -422,16 +445,15 @@ PAIR_INLINE void pair_gather_range(const pair_force *p, const int law, const int
     for (size_t j = j0; j < j1; j++) {
         if (j == i)
             continue;
-        double dx[3], r2 = 0;
-        for (int k = 0; k < d; k++) {
+        double dx[3] = {0, 0, 0};
+        for (int k = 0; k < d; k++)
             dx[k] = pair_delta(m, k, xi[k] - x[j * d + k]);
-            r2 += dx[k] * dx[k];
-        }
+        const double r2 = want_f ? pair_force_r2(d, dx[0], dx[1], dx[2]) : pair_plain_r2(d, dx[0], dx[1], dx[2]);
         double u = 0;
         double g = pair_kernel(p, law, r2, w ? wi * w[j] : 1.0, want_u, &u);
         if (want_f)
             for (int k = 0; k < d; k++)
-                a[k] += g * dx[k];
+                a[k] = fma(g, dx[k], a[k]);
         if (want_u)
             us += u;
     }

@@ -1,4 +1,4 @@
-/* Grid pair forces four rows at a time (AVX2): the lanes of a vector are
+/* Grid pair forces four rows at a time (AVX2 with FMA): the lanes of a vector are
  * four consecutive particles i, each walking its own neighbour list.
  *
  * Why: the row kernel (pair_row_forces) vectorises over a particle's
@@ -10,9 +10,9 @@
  * vectors (faster than gathers on the AMD host measured, bench/README).
  *
  * Same bits: per lane, the operations of pair_row_terms and pair_kernel in
- * the same order (no FMA, division and square root correctly rounded), and
- * the same sum in list order starting from +0. Lanes whose list has ended
- * add +0, which changes no sum (a sum started at +0 is never -0). Groups in
+ * the same order (the fused multiply-adds of pair_force_r2 and of the sums,
+ * division and square root correctly rounded), and the same sum in list
+ * order starting from +0. Lanes whose list has ended keep their sums. Groups in
  * which some |x_i - x_j| reaches 1.5 box lengths on a periodic axis are
  * computed again by pair_row_forces (the exact minimum image); so are the
  * last n mod 4 rows.
@@ -22,7 +22,7 @@
  * build: the loop then reads one stream of indices instead of one per row
  * (LJ melt, 32,000 atoms: 291 against 346 ns per atom-step, bench/README).
  * A row shorter than its group's longest is padded with its own index, a
- * partner masked to +0.
+ * partner masked out.
  *
  * Partial evaluations (the rows a wrap or a small move changed, a few per
  * group of consecutive rows) take the marked rows eight at a time wherever
@@ -51,12 +51,16 @@ static bool group_wanted(const pair_force *p)
     /* PSYS_GROUP_OFF in the environment forces the row kernel, so the tests
      * cover both paths on any machine */
     return (p->law == PSYS_PAIR_LENNARD_JONES || p->law == PSYS_PAIR_SOFT_REPULSION)
-           && __builtin_cpu_supports("avx2") && !getenv("PSYS_GROUP_OFF");
+           && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && !getenv("PSYS_GROUP_OFF");
 }
 
+#define AVX2 __attribute__((target("avx2,fma")))
+
 /* Row i through pair_row_forces (the exact minimum image), stored into out;
- * the law as a constant, as the group loop supports it. */
-static void group_row_alone(const pair_force *p, const pair_image *m, const double *w, size_t i, double *out)
+ * the law as a constant, as the group loop supports it. Built for AVX2 with
+ * FMA like the loops (it runs only where they do), so the fused
+ * multiply-adds are instructions. */
+AVX2 static void group_row_alone(const pair_force *p, const pair_image *m, const double *w, size_t i, double *out)
 {
     const pair_grid *g = &p->grid;
     const int d = p->dim;
@@ -69,7 +73,6 @@ static void group_row_alone(const pair_force *p, const pair_image *m, const doub
         out[i * (size_t)d + (size_t)k] = a[k];
 }
 
-#define AVX2 __attribute__((target("avx2")))
 
 /* The loops' constants, one vector of equal lanes each (V: __m256d or
  * __m512d); the eight-lane set is the four-lane one widened (group8_consts_of). */
@@ -189,22 +192,23 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
             if (d == 3)
                 far = _mm256_or_pd(far, _mm256_cmp_pd(_mm256_andnot_pd(c->sign, e2), c->hl[2], _CMP_GT_OQ));
         }
-        __m256d r2 = _mm256_add_pd(_mm256_mul_pd(e0, e0), _mm256_mul_pd(e1, e1));
+        /* pair_force_r2 and the fused sums of pair_row_forces */
+        __m256d r2 = _mm256_fmadd_pd(e1, e1, _mm256_mul_pd(e0, e0));
         if (d == 3)
-            r2 = _mm256_add_pd(r2, _mm256_mul_pd(e2, e2));
+            r2 = _mm256_fmadd_pd(e2, e2, r2);
         const __m256d gg = group_kernel(c, law, r2);
-        __m256d c0 = _mm256_mul_pd(gg, e0), c1 = _mm256_mul_pd(gg, e1);
-        if (k >= full) { /* lanes whose list has ended (padding) add +0 */
+        const __m256d s0 = _mm256_fmadd_pd(gg, e0, a0), s1 = _mm256_fmadd_pd(gg, e1, a1);
+        const __m256d s2 = d == 3 ? _mm256_fmadd_pd(gg, e2, a2) : a2;
+        if (k >= full) { /* lanes whose list has ended (padding) keep their sums */
             const __m256d live = _mm256_castsi256_pd(_mm256_cvtepi32_epi64(_mm_cmpgt_epi32(num, _mm_set1_epi32((int)k))));
-            c0 = _mm256_and_pd(c0, live);
-            c1 = _mm256_and_pd(c1, live);
-            if (d == 3)
-                a2 = _mm256_add_pd(a2, _mm256_and_pd(_mm256_mul_pd(gg, e2), live));
-        } else if (d == 3) {
-            a2 = _mm256_add_pd(a2, _mm256_mul_pd(gg, e2));
+            a0 = _mm256_blendv_pd(a0, s0, live);
+            a1 = _mm256_blendv_pd(a1, s1, live);
+            a2 = _mm256_blendv_pd(a2, s2, live);
+        } else {
+            a0 = s0;
+            a1 = s1;
+            a2 = s2;
         }
-        a0 = _mm256_add_pd(a0, c0);
-        a1 = _mm256_add_pd(a1, c1);
     }
     _mm256_storeu_pd(s[0], a0);
     _mm256_storeu_pd(s[1], a1);
@@ -340,8 +344,8 @@ AVX512 static inline __m512d group8_delta(const group8_consts *c, int k, __m512d
 }
 
 /* Lennard-Jones: the division masked to the pairs inside the cutoff, the
- * others getting 1/r² = 0 and so g = ±0: a ±0 term adds nothing to a sum
- * that starts at +0 (no sum of finite terms is -0), so the same bits as
+ * others getting 1/r² = 0 and so g = ±0: a ±0 term fused into a sum that
+ * starts at +0 leaves it as it is (no such sum of finite terms is -0), so the same bits as
  * the masked g of the row kernel, two instructions fewer per entry. */
 AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law, __m512d r2)
 {
@@ -385,7 +389,7 @@ AVX512 __attribute__((always_inline)) static inline void group8_records(const do
 }
 
 /* Entry k of a group's lists (j: its eight partners' record offsets) added
- * into a; lanes outside live (lists that have ended) add +0. */
+ * into a; lanes outside live (lists that have ended) keep their sums. */
 AVX512 __attribute__((always_inline)) static inline void group8_entry(const group8_consts *c, const int law,
                                                                      const int d, const int mode, const double *Q,
                                                                      const uint32_t *j, const __m512d xi[3],
@@ -412,14 +416,16 @@ AVX512 __attribute__((always_inline)) static inline void group8_entry(const grou
         if (d == 3)
             *far |= _mm512_cmp_pd_mask(_mm512_andnot_pd(c->sign, e2), c->hl[2], _CMP_GT_OQ);
     }
-    __m512d r2 = _mm512_add_pd(_mm512_mul_pd(e0, e0), _mm512_mul_pd(e1, e1));
+    /* pair_force_r2 and the fused sums of pair_row_forces; lanes outside
+     * live keep their sums */
+    __m512d r2 = _mm512_fmadd_pd(e1, e1, _mm512_mul_pd(e0, e0));
     if (d == 3)
-        r2 = _mm512_add_pd(r2, _mm512_mul_pd(e2, e2));
+        r2 = _mm512_fmadd_pd(e2, e2, r2);
     const __m512d gg = group8_kernel(c, law, r2);
-    a[0] = _mm512_add_pd(a[0], _mm512_maskz_mul_pd(live, gg, e0));
-    a[1] = _mm512_add_pd(a[1], _mm512_maskz_mul_pd(live, gg, e1));
+    a[0] = _mm512_mask3_fmadd_pd(gg, e0, a[0], live);
+    a[1] = _mm512_mask3_fmadd_pd(gg, e1, a[1], live);
     if (d == 3)
-        a[2] = _mm512_add_pd(a[2], _mm512_maskz_mul_pd(live, gg, e2));
+        a[2] = _mm512_mask3_fmadd_pd(gg, e2, a[2], live);
 }
 
 /* Rows i0..i0+7 into s (s[k][l]: component k of row i0+l); true if a
