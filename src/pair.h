@@ -8,7 +8,8 @@
  * each pair's force to i and its negation to j, which reaches every
  * particle's sum in the same order. A pair's forces are computed from the
  * same numbers at both ends (x_i - x_j is exactly -(x_j - x_i), also under
- * the minimum image), so f_ij = -f_ji exactly; pairs beyond the cutoff add
+ * the minimum image; r² and the sums with the same fused multiply-adds on
+ * every path, pair_force_r2), so f_ij = -f_ji exactly; pairs beyond the cutoff add
  * exactly nothing. So `direct` and `grid` give bit-identical forces, results
  * do not depend on the thread count, the skin or when lists were rebuilt (a
  * resumed run matches an uninterrupted one). Energies: per-particle sums in
