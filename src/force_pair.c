@@ -295,9 +295,10 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
         const size_t nchunks = (n + GRID_CHUNK - 1) / GRID_CHUNK;                                            \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1))                          \
-        for (size_t c = 0; c < nchunks; c++)                                                                 \
-            name##_rows(p, m, x, w, c * GRID_CHUNK, c * GRID_CHUNK + GRID_CHUNK < n ? c * GRID_CHUNK + GRID_CHUNK : n, \
-                        mark, out);                                                                          \
+        for (size_t c = 0; c < nchunks; c++) {                                                               \
+            const size_t i0 = c * GRID_CHUNK, i1 = i0 + GRID_CHUNK < n ? i0 + GRID_CHUNK : n;                 \
+            name##_rows(p, m, x, w, i0, i1, mark, out);                                                      \
+        }                                                                                                    \
     }
 
 /* Grid forces of rows [i0, i1) (all, or the marked ones) through
@@ -355,8 +356,9 @@ static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const
  * bits. With mark, only marked particles' entries of out are recomputed
  * (pairs with no marked end are skipped); the others are left as they are. */
 #define HALF_FN(name, LAW, D, WF, WU)                                                                        \
-    PAIR_FMA_CLONES static void name(const pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,   \
-                     const unsigned char *mark, double *out, int nt)                                         \
+    PAIR_FMA_CLONES static void name(const pair_force *p, const pair_image *m, const double *x,              \
+                                     const double *w, size_t n, const unsigned char *mark, double *out,      \
+                                     int nt)                                                                 \
     {                                                                                                        \
         if (mark)                                                                                            \
             half_sweep(p, LAW, D, m, x, w, n, mark, out, WF, WU);                                            \

@@ -9,8 +9,8 @@
  * particle's sum in the same order. A pair's forces are computed from the
  * same numbers at both ends (x_i - x_j is exactly -(x_j - x_i), also under
  * the minimum image; r² and the sums with the same fused multiply-adds on
- * every path, pair_force_r2), so f_ij = -f_ji exactly; pairs beyond the cutoff add
- * exactly nothing. So `direct` and `grid` give bit-identical forces, results
+ * every path, pair_force_r2), so f_ij = -f_ji exactly; pairs beyond the
+ * cutoff add exactly nothing. So `direct` and `grid` give bit-identical forces, results
  * do not depend on the thread count, the skin or when lists were rebuilt (a
  * resumed run matches an uninterrupted one). Energies: per-particle sums in
  * the same order, then ½ Σ_i in index order. */
@@ -261,8 +261,8 @@ PAIR_INLINE double pair_kernel(const pair_force *p, const int law, double r2, do
 }
 
 /* A pair's force terms, formed the same way on every path (the scalar
- * loops here, the row loops built for AVX2 and AVX-512, pair_group.c's four-
- * and eight-lane loops): r² is dx0², then dx1² and dx2² each fused into the
+ * loops here, the row loops built for x86-64-v3 and AVX-512, pair_group.c's
+ * four- and eight-lane loops): r² is dx0², then dx1² and dx2² each fused into the
  * sum, and each term g·dx_k is fused into its running sum. A fused
  * multiply-add rounds once where a product and a sum round twice; it is
  * correctly rounded wherever it runs (one instruction where the CPU has FMA,
@@ -357,9 +357,9 @@ PAIR_INLINE bool pair_row_terms(const pair_force *pk, const int law, const int d
 
 /* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
  * partners: each pair's g and dx, computed independently (the loop
- * vectorises), then the terms g·dx fused into the sums in list order. The operations per pair and
- * the order of the sum are those of pair_gather_list, so the bits are the
- * same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
+ * vectorises), then the terms g·dx fused into the sums in list order. The
+ * operations per pair and the order of the sum are those of
+ * pair_gather_list, so the bits are the same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
  * the index range [j0, j0 + nj) without i (pair_gather_range's sum).
  * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
  * none for the other laws. */

@@ -1,5 +1,6 @@
-/* Grid pair forces four rows at a time (AVX2 with FMA): the lanes of a vector are
- * four consecutive particles i, each walking its own neighbour list.
+/* Grid pair forces four rows at a time (AVX2 with FMA): the lanes of a
+ * vector are four consecutive particles i, each walking its own neighbour
+ * list.
  *
  * Why: the row kernel (pair_row_forces) vectorises over a particle's
  * partners and then adds their forces one after another, a chain of additions
@@ -12,10 +13,10 @@
  * Same bits: per lane, the operations of pair_row_terms and pair_kernel in
  * the same order (the fused multiply-adds of pair_force_r2 and of the sums,
  * division and square root correctly rounded), and the same sum in list
- * order starting from +0. Lanes whose list has ended keep their sums. Groups in
- * which some |x_i - x_j| reaches 1.5 box lengths on a periodic axis are
- * computed again by pair_row_forces (the exact minimum image); so are the
- * last n mod 4 rows.
+ * order starting from +0. Lanes whose list has ended keep their sums.
+ * Groups in which some |x_i - x_j| reaches 1.5 box lengths on a periodic
+ * axis are computed again by pair_row_forces (the exact minimum image); so
+ * are the last n mod 4 rows.
  *
  * Lists: a copy of the grid's full lists interleaved by group (entry k of
  * the group's rows side by side, psys__pair_group_lists), made after each
@@ -72,7 +73,6 @@ AVX2 static void group_row_alone(const pair_force *p, const pair_image *m, const
     for (int k = 0; k < d; k++)
         out[i * (size_t)d + (size_t)k] = a[k];
 }
-
 
 /* The loops' constants, one vector of equal lanes each (V: __m256d or
  * __m512d); the eight-lane set is the four-lane one widened (group8_consts_of). */
@@ -345,8 +345,9 @@ AVX512 static inline __m512d group8_delta(const group8_consts *c, int k, __m512d
 
 /* Lennard-Jones: the division masked to the pairs inside the cutoff, the
  * others getting 1/r² = 0 and so g = ±0: a ±0 term fused into a sum that
- * starts at +0 leaves it as it is (no such sum of finite terms is -0), so the same bits as
- * the masked g of the row kernel, two instructions fewer per entry. */
+ * starts at +0 leaves it as it is (no such sum of finite terms is -0), so
+ * the same bits as the masked g of the row kernel, two instructions fewer
+ * per entry. */
 AVX512 static inline __m512d group8_kernel(const group8_consts *c, const int law, __m512d r2)
 {
     /* 0 < r² < rc² as one unsigned comparison of the bits less one: +0
