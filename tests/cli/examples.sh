@@ -134,7 +134,7 @@ test_claims() {
   near "$drift" 0 2e-5 "orbit-free-pair: energy drift"
 
   # lj-droplet: exactly opposite pair forces keep the total momentum (zero) to
-  # round-off; velocity Verlet keeps the energy within 0.15 J of -145.26 J (the
+  # round-off; velocity Verlet keeps the energy within 0.15 of -145.26 (the
   # force jumps at the cutoff; 0.090 measured); grid = direct bit for bit.
   "$psys" run "$ex/lj-droplet.json" --out lj.csv --energy lj-e.csv --quiet
   drift=$(awk -F, 'NR > 1 { px[$1] += $6; py[$1] += $7 }
