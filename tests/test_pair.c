@@ -421,6 +421,19 @@ static void sort_lists(void)
     free(b);
 }
 
+/* A Lennard-Jones pair definition (the tests' usual parameters). */
+static psys_pair_def lj_def(double sigma, double epsilon, double cutoff, double skin, psys_pair_method method)
+{
+    psys_pair_def def = psys_pair_def_default();
+    def.law = PSYS_PAIR_LENNARD_JONES;
+    def.sigma = sigma;
+    def.epsilon = epsilon;
+    def.cutoff = cutoff;
+    def.skin = skin;
+    def.method = method;
+    return def;
+}
+
 /* ------------------------------------------------------------------ grid = direct */
 
 static psys_system *cloud_with_pair(int dim, size_t n, double size, int law, psys_pair_method method, double skin,
@@ -755,13 +768,7 @@ static void grid_partial_sparse_groups(void)
     const size_t side = 17, n = side * side * side;
     const double L = 0.2 * (double)side, lo[3] = {0, 0, 0}, hi[3] = {L, L, L};
     const bool per[3] = {true, true, true};
-    psys_pair_def def = psys_pair_def_default();
-    def.law = PSYS_PAIR_LENNARD_JONES;
-    def.sigma = 0.1;
-    def.epsilon = 0.01;
-    def.cutoff = 0.3;
-    def.skin = 0.05;
-    def.method = PSYS_PAIR_GRID;
+    const psys_pair_def def = lj_def(0.1, 0.01, 0.3, 0.05, PSYS_PAIR_GRID);
     for (int threads = 1; threads <= 2; threads++) {
         urand_seed(13);
         psys_system *a = jittered_lattice(3, n, 0.2, 0.02, false);
@@ -819,13 +826,7 @@ static void cutoff_boundary_groups(void)
                 x[0] = 4.0 + 0.49;
             add_particle(sys[q], x, NULL, 1.0);
         }
-        psys_pair_def def = psys_pair_def_default();
-        def.law = PSYS_PAIR_LENNARD_JONES;
-        def.sigma = 0.45;
-        def.epsilon = 0.01;
-        def.cutoff = 0.5;
-        def.skin = 0.1;
-        def.method = q ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID;
+        const psys_pair_def def = lj_def(0.45, 0.01, 0.5, 0.1, q ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID);
         add_pair(sys[q], &def);
     }
     check_same_forces(sys[0], sys[1]);
@@ -1008,12 +1009,7 @@ static void grid_cache_matches_direct(void)
             double v[3] = {urand(-3, 3), urand(-3, 3), urand(-3, 3)};
             add_particle(sys, x, v, 1);
         }
-        psys_pair_def def = psys_pair_def_default();
-        def.law = PSYS_PAIR_LENNARD_JONES;
-        def.sigma = 0.6;
-        def.cutoff = 1.5;
-        def.skin = 0.4;
-        def.method = method ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID;
+        const psys_pair_def def = lj_def(0.6, 1, 1.5, 0.4, method ? PSYS_PAIR_DIRECT : PSYS_PAIR_GRID);
         size_t k = add_pair(sys, &def);
         psys_ode ode = psys_system_ode(sys);
         psys_error err;
@@ -1302,11 +1298,7 @@ static psys_system *thread_case(int which)
                     double v[3] = {urand(-1, 1), urand(-1, 1), urand(-1, 1)};
                     add_particle(sys, x, v, 1);
                 }
-        psys_pair_def def = psys_pair_def_default();
-        def.law = PSYS_PAIR_LENNARD_JONES;
-        def.sigma = 0.7;
-        def.cutoff = 1.75;
-        def.skin = 0.2;
+        const psys_pair_def def = lj_def(0.7, 1, 1.75, 0.2, PSYS_PAIR_AUTO);
         add_pair(sys, &def);
         return sys;
     }
