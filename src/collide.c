@@ -303,7 +303,16 @@ psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, dou
     /* nothing can collide (and the scratch state is NULL with no particles;
      * across ranks every rank takes part in the events, however few it has) */
     if (!s->nplanes || (!s->n && !hk)) {
+        /* a mesh numbered out of order: the step in the springs' order, the
+         * same bits; a failure is taken again in the particles' order, whose
+         * message names the first bad component as users number them */
+        const bool ordered = !hk && psys__state_order_begin(s, solver);
         psys_status st = psys_solver_step(solver, h_max, &h);
+        if (ordered) {
+            psys__state_order_end(s);
+            if (st == PSYS_ERR_NONFINITE)
+                st = psys_solver_step(solver, h_max, &h);
+        }
         if (st == PSYS_OK)
             psys__box_wrap(s); /* periodic axes: back into the box after each accepted step */
         if (h_taken)

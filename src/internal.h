@@ -135,6 +135,14 @@ struct psys_system {
     struct psys__dist *dist; /* MPI decomposition (mpi.c, PSYS_MPI builds), NULL = serial */
     const unsigned char *own_mark; /* MPI domain decomposition (mpi_domain.c): 1 for the particles this
                                       rank owns (pair rows to compute), 0 for ghosts; NULL = all */
+    /* During a step of psys__advance in the springs' internal order
+     * (psys__state_order_begin): slot i of the ODE's state holds particle
+     * ode_perm[i] (i < ode_perm_n; beyond, particle i), and ode_mass,
+     * ode_inv_mass (ode_cap entries) the masses in slot order. NULL: the
+     * particles' own order, as always outside such a step. */
+    const uint32_t *ode_perm;
+    size_t ode_perm_n, ode_cap;
+    double *ode_mass, *ode_inv_mass;
     psys_error err;
 };
 
@@ -263,6 +271,26 @@ bool psys__fused_chain_eligible(psys_system *sys, int stages);
  *  nothing done) when the system is not eligible. */
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
                               const psys_stage_pass *pass, bool *used);
+/** The springs' internal order (slot -> particle, covering *perm_n
+ *  particles) when the fused derivative takes sys and the springs have one
+ *  (builds the plan); NULL otherwise. */
+const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n);
+/** Rows of `width` doubles from particle order into slot order:
+ *  dst[i] = src[perm[i]] (i < perm_n; beyond, src[i]), n rows, on nt threads. */
+void psys__order_gather(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
+                        int nt);
+/** The inverse of psys__order_gather: dst[perm[i]] = src[i]. */
+void psys__order_scatter(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
+                         int nt);
+/** Before a step of psys__advance: hold the solver's state in the springs'
+ *  internal order for this step where that gives the same bits (an
+ *  elementwise solver on the system's own ODE, the fused derivative, no
+ *  controlled particles) and the springs have such an order; true if so,
+ *  until psys__state_order_end. PSYS_STATE_ORDER=0 in the environment
+ *  keeps the particles' order. */
+bool psys__state_order_begin(psys_system *s, const psys_solver *solver);
+/** Back to the particles' own order (after the step). */
+void psys__state_order_end(psys_system *s);
 
 /** The order in which each particle's force receives its spring forces
  *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists

@@ -42,6 +42,8 @@ struct psys__solver_class {
     int order;
     bool adaptive;
     bool second_order_only;      /* needs ode.npos * 2 == ode.size */
+    bool elementwise;            /* a step treats each state component alone (no sums across
+                                    components): any order of them gives the same bits */
     int nbuf;                    /* scratch vectors needed */
     const psys__tableau *tab;    /* for Runge–Kutta kinds */
     psys_status (*step)(psys_solver *s, double h_max, double *h_taken);

@@ -340,7 +340,7 @@ static psys_status rk_adaptive_step(psys_solver *s, double h_max, double *h_take
     }
 }
 
-const psys__solver_class psys__euler = {.name = "euler", .order = 1, .adaptive = false, .second_order_only = false, .nbuf = K0 + 1, .tab = &euler_tab, .step = rk_fixed_step};
-const psys__solver_class psys__midpoint = {.name = "midpoint", .order = 2, .adaptive = false, .second_order_only = false, .nbuf = K0 + 2, .tab = &midpoint_tab, .step = rk_fixed_step};
-const psys__solver_class psys__rk4 = {.name = "rk4", .order = 4, .adaptive = false, .second_order_only = false, .nbuf = K0 + 4, .tab = &rk4_tab, .step = rk_fixed_step};
+const psys__solver_class psys__euler = {.name = "euler", .order = 1, .adaptive = false, .second_order_only = false, .elementwise = true, .nbuf = K0 + 1, .tab = &euler_tab, .step = rk_fixed_step};
+const psys__solver_class psys__midpoint = {.name = "midpoint", .order = 2, .adaptive = false, .second_order_only = false, .elementwise = true, .nbuf = K0 + 2, .tab = &midpoint_tab, .step = rk_fixed_step};
+const psys__solver_class psys__rk4 = {.name = "rk4", .order = 4, .adaptive = false, .second_order_only = false, .elementwise = true, .nbuf = K0 + 4, .tab = &rk4_tab, .step = rk_fixed_step};
 const psys__solver_class psys__rk45 = {.name = "rk45", .order = 5, .adaptive = true, .second_order_only = false, .nbuf = K0 + 7, .tab = &dopri5_tab, .step = rk_adaptive_step};

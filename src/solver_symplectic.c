@@ -64,5 +64,5 @@ static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
     return psys__solver_commit(s, y1, t + h);
 }
 
-const psys__solver_class psys__symplectic_euler = {.name = "symplectic-euler", .order = 1, .adaptive = false, .second_order_only = true, .nbuf = 3, .tab = NULL, .step = symplectic_euler_step};
-const psys__solver_class psys__verlet = {.name = "verlet", .order = 2, .adaptive = false, .second_order_only = true, .nbuf = 4, .tab = NULL, .step = verlet_step};
+const psys__solver_class psys__symplectic_euler = {.name = "symplectic-euler", .order = 1, .adaptive = false, .second_order_only = true, .elementwise = true, .nbuf = 3, .tab = NULL, .step = symplectic_euler_step};
+const psys__solver_class psys__verlet = {.name = "verlet", .order = 2, .adaptive = false, .second_order_only = true, .elementwise = true, .nbuf = 4, .tab = NULL, .step = verlet_step};

@@ -133,8 +133,10 @@ static inline void rows_at(double *rb, size_t S, int q, int d, size_t i0, double
 #define PERM_AHEAD 8
 #if defined(__GNUC__)
 #define PERM_PREFETCH(p) __builtin_prefetch(p)
+#define PERM_PREFETCH_W(p) __builtin_prefetch(p, 1)
 #else
 #define PERM_PREFETCH(p) ((void)(p))
+#define PERM_PREFETCH_W(p) ((void)(p))
 #endif
 
 /* enter() for slots [a, a + cnt) in the springs' internal order: x, v and
@@ -597,6 +599,11 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *y, doubl
     fz->mass = sys->mass;
     fz->inv_mass = sys->inv_mass;
     fz->perm = s->perm;
+    if (sys->ode_perm) { /* y, ydot and the pass already in slot order (psys__state_order_begin) */
+        fz->mass = sys->ode_mass;
+        fz->inv_mass = sys->ode_inv_mass;
+        fz->perm = NULL;
+    }
     fz->xdot = ydot;
     fz->vdot = ydot ? ydot + nd : NULL;
     fz->pass = pass;
@@ -818,4 +825,52 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
     }
     *used = true;
     return PSYS_OK;
+}
+
+/* ---- The solver's state in the springs' internal order
+ *
+ * With the state itself in slot order (psys__state_order_begin), the
+ * window reads and writes it as it does a mesh numbered in rows: streams
+ * instead of a gather and a scatter across the whole state per particle
+ * and stage. The state moves between the two orders once per step (the
+ * solver's get_state and commit) instead of at every stage. */
+
+const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n)
+{
+    fused fz;
+    if (!eligible(sys, &fz) || psys__springs_prepare_rings(sys->springs, sys->n, 1) != PSYS_OK)
+        return NULL;
+    const springs *s = sys->springs;
+    *perm_n = s->perm_n;
+    return s->perm;
+}
+
+void psys__order_gather(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
+                        int nt)
+{
+    const size_t w = (size_t)width;
+    (void)nt;
+    PSYS_PAR_FOR(nt, n * w)
+    for (size_t i = 0; i < n; i++) {
+        const size_t p = i < perm_n ? perm[i] : i;
+        if (i + 4 * PERM_AHEAD < perm_n) /* the rows come from all over memory */
+            PERM_PREFETCH(src + perm[i + 4 * PERM_AHEAD] * w);
+        for (size_t c = 0; c < w; c++)
+            dst[i * w + c] = src[p * w + c];
+    }
+}
+
+void psys__order_scatter(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
+                         int nt)
+{
+    const size_t w = (size_t)width;
+    (void)nt;
+    PSYS_PAR_FOR(nt, n * w)
+    for (size_t i = 0; i < n; i++) {
+        const size_t p = i < perm_n ? perm[i] : i;
+        if (i + 4 * PERM_AHEAD < perm_n)
+            PERM_PREFETCH_W(dst + perm[i + 4 * PERM_AHEAD] * w);
+        for (size_t c = 0; c < w; c++)
+            dst[p * w + c] = src[i * w + c];
+    }
 }

@@ -1,5 +1,6 @@
 /* The particle system: SoA particles, the force list, and its ODE view. */
 #include "internal.h"
+#include "solver.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -64,6 +65,8 @@ void psys_system_destroy(psys_system *s)
     free(s->planes);
     free(s->scratch);
     free(s->forces);
+    free(s->ode_mass);
+    free(s->ode_inv_mass);
 #ifdef PSYS_MPI
     psys__dist_free(s->dist);
 #endif
@@ -439,6 +442,11 @@ static void ode_get_state(void *ctx, double *y)
     if (nd == 0) /* no particles: s->x may be NULL, and memcpy(_, NULL, 0) is undefined */
         return;
     int nt = psys_system_effective_threads(s);
+    if (s->ode_perm) {
+        psys__order_gather(s->ode_perm, s->ode_perm_n, s->n, s->dim, s->x, y, nt);
+        psys__order_gather(s->ode_perm, s->ode_perm_n, s->n, s->dim, s->v, y + nd, nt);
+        return;
+    }
     par_copy(nt, y, s->x, nd);
     par_copy(nt, y + nd, s->v, nd);
 }
@@ -450,6 +458,11 @@ static void ode_set_state(void *ctx, const double *y)
     if (nd == 0)
         return;
     int nt = psys_system_effective_threads(s);
+    if (s->ode_perm) {
+        psys__order_scatter(s->ode_perm, s->ode_perm_n, s->n, s->dim, y, s->x, nt);
+        psys__order_scatter(s->ode_perm, s->ode_perm_n, s->n, s->dim, y + nd, s->v, nt);
+        return;
+    }
     par_copy(nt, s->x, y, nd);
     par_copy(nt, s->v, y + nd, nd);
 }
@@ -483,6 +496,8 @@ static psys_status derivative_into(void *ctx, double t, const double *y, double 
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     if (fused)
         return PSYS_OK;
+    if (s->ode_perm) /* cannot happen: psys__state_order_begin checked that the fused path takes s */
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "state in the springs' order without the fused derivative");
     if (s->springs && psys__springs_prepare(s->springs) != PSYS_OK)
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
     if (accumulate(s, &e, s->f) != PSYS_OK)
@@ -620,6 +635,46 @@ psys_ode psys_system_ode(psys_system *s)
     o.block = s->dim;
     return o;
 }
+
+bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
+{
+    s->ode_perm = NULL;
+    const psys_ode *o = &solver->ode;
+    /* The solver's state is the system's own ODE's, with none of its
+     * callbacks replaced (a replacement could read the state by particle) */
+    const bool own = o->ctx == s && o->size == 2 * s->n * (size_t)s->dim && o->get_state == ode_get_state &&
+                     o->set_state == ode_set_state && o->derivative == ode_derivative &&
+                     o->acceleration == ode_acceleration && o->derivative_stage == ode_derivative_stage &&
+                     o->derivative_chain == ode_derivative_chain && o->project == ode_project;
+    if (!own || !solver->cls->elementwise || s->nctrl || s->nplanes || s->dist)
+        return false;
+    const char *env = getenv("PSYS_STATE_ORDER");
+    if (env && env[0] == '0')
+        return false;
+    size_t perm_n = 0;
+    const uint32_t *perm = psys__fused_order(s, &perm_n);
+    if (!perm)
+        return false;
+    if (s->ode_cap < s->n) {
+        double *m = psys__realloc(s->ode_mass, s->n, sizeof(double));
+        if (m)
+            s->ode_mass = m;
+        double *im = psys__realloc(s->ode_inv_mass, s->n, sizeof(double));
+        if (im)
+            s->ode_inv_mass = im;
+        if (!m || !im)
+            return false; /* the particles' order, which needs no more memory */
+        s->ode_cap = s->n;
+    }
+    const int nt = psys_system_effective_threads(s);
+    psys__order_gather(perm, perm_n, s->n, 1, s->mass, s->ode_mass, nt);
+    psys__order_gather(perm, perm_n, s->n, 1, s->inv_mass, s->ode_inv_mass, nt);
+    s->ode_perm = perm;
+    s->ode_perm_n = perm_n;
+    return true;
+}
+
+void psys__state_order_end(psys_system *s) { s->ode_perm = NULL; }
 
 size_t psys_system_particle_of_component(const psys_system *s, size_t k)
 {

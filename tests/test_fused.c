@@ -473,6 +473,122 @@ static void chain_same_bits(void)
     psys_system_destroy(s);
 }
 
+/* The state of s (positions, then velocities), copied. */
+static double *state_of(const psys_system *s)
+{
+    const size_t nd = 3 * psys_system_count(s);
+    double *y = malloc(2 * nd * sizeof *y);
+    memcpy(y, psys_system_positions(s), nd * sizeof *y);
+    memcpy(y + nd, psys_system_velocities(s), nd * sizeof *y);
+    return y;
+}
+
+/* A step of psys_system_advance on a mesh numbered out of order holds the
+ * solver's state in the springs' order (psys__state_order_begin): the same
+ * bits as in the particles' order (PSYS_STATE_ORDER=0) for every
+ * elementwise solver, stage by stage and chained, on 1 to 3 threads; rk45
+ * (its error norm sums over the state), a mesh in its own order, a
+ * replaced callback and controlled particles keep the particles' order;
+ * and a step that blows up names the same component either way. */
+static void state_order_same_bits(void)
+{
+    static const char *const solvers[] = {"euler", "midpoint", "rk4", "symplectic-euler", "verlet", "rk45"};
+    const size_t nsolvers = sizeof solvers / sizeof *solvers;
+    for (size_t k = 0; k < nsolvers; k++)
+        for (int chain = 0; chain < 2; chain++) {
+            if (chain && strcmp(solvers[k], "midpoint") != 0 && strcmp(solvers[k], "rk4") != 0)
+                continue;
+            double *want = NULL;
+            for (int run = 0; run < 4; run++) { /* 0: the particles' order; 1..3: the springs', 1..3 threads */
+                setenv("PSYS_FUSED", "1", 1);  /* small sets threaded too */
+                setenv("PSYS_CHAIN", chain ? "1" : "0", 1);
+                setenv("PSYS_STATE_ORDER", run == 0 ? "0" : "1", 1);
+                psys_system *s = build(SHEET_SHUFFLED);
+                CHECK(psys_system_set_threads(s, run == 0 ? 1 : run) == PSYS_OK);
+                psys_ode o = psys_system_ode(s);
+                psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
+                CHECK(sv != NULL);
+                CHECK(psys__state_order_begin(s, sv) == (run > 0 && k + 1 < nsolvers));
+                psys__state_order_end(s);
+                for (int step = 0; step < 8; step++)
+                    CHECK(psys_system_advance(s, sv, 1e-4, NULL) == PSYS_OK);
+                CHECK(s->ode_perm == NULL); /* back in the particles' order after each step */
+                double *got = state_of(s);
+                const size_t size = 6 * psys_system_count(s);
+                if (run == 0) {
+                    want = got;
+                } else {
+                    size_t bad = size;
+                    for (size_t i = 0; i < size && bad == size; i++)
+                        if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
+                            bad = i;
+                    if (bad != size)
+                        fprintf(stderr, "%s, chain %d, %d threads: y[%zu] = %.17g, particles' order %.17g\n",
+                                solvers[k], chain, run, bad, got[bad], want[bad]);
+                    CHECK(bad == size);
+                    free(got);
+                }
+                psys_solver_destroy(sv);
+                psys_system_destroy(s);
+            }
+            free(want);
+        }
+    unsetenv("PSYS_FUSED");
+    unsetenv("PSYS_CHAIN");
+    unsetenv("PSYS_STATE_ORDER");
+
+    /* where it stays in the particles' order */
+    psys_system *s = build(SHEET); /* numbered in rows: no internal order */
+    psys_ode o = psys_system_ode(s);
+    psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+    CHECK(!psys__state_order_begin(s, sv));
+    psys_solver_destroy(sv);
+    psys_system_destroy(s);
+    s = build(SHEET_SHUFFLED);
+    o = psys_system_ode(s);
+    sv = psys_solver_create("rk4", &o, NULL);
+    CHECK(psys__state_order_begin(s, sv));
+    psys__state_order_end(s);
+    psys_solver_destroy(sv);
+    system_stage = o.derivative_stage;
+    o.derivative_stage = counting_stage; /* a callback of the caller's */
+    sv = psys_solver_create("rk4", &o, NULL);
+    CHECK(!psys__state_order_begin(s, sv));
+    psys_solver_destroy(sv);
+    o = psys_system_ode(s);
+    sv = psys_solver_create("rk4", &o, NULL);
+    const double centre[3] = {0, 0, 0}, dir[3] = {1, 0, 0};
+    CHECK(psys_system_control_oscillate(s, 7, centre, dir, 0.1, 3.0, 0) == PSYS_OK);
+    CHECK(!psys__state_order_begin(s, sv));
+    psys_solver_destroy(sv);
+    psys_system_destroy(s);
+
+    /* a blow-up (steps far beyond the springs' stability limit): the same
+     * step and the same first non-finite component, as users number them */
+    size_t bad_at[2] = {0, 0}, bad_step[2] = {0, 0};
+    for (int run = 0; run < 2; run++) {
+        setenv("PSYS_STATE_ORDER", run == 0 ? "0" : "1", 1);
+        s = build(SHEET_SHUFFLED);
+        o = psys_system_ode(s);
+        sv = psys_solver_create("rk4", &o, NULL);
+        psys_status st = PSYS_OK;
+        size_t step = 0;
+        while (st == PSYS_OK && step < 2000) {
+            st = psys_system_advance(s, sv, 2.0, NULL);
+            step++;
+        }
+        CHECK(st == PSYS_ERR_NONFINITE);
+        bad_at[run] = psys_solver_bad_component(sv);
+        bad_step[run] = step;
+        psys_solver_destroy(sv);
+        psys_system_destroy(s);
+    }
+    unsetenv("PSYS_STATE_ORDER");
+    CHECK(bad_step[0] == bad_step[1]);
+    CHECK(bad_at[0] == bad_at[1]);
+    CHECK(bad_at[0] < 6 * 70 * 45);
+}
+
 static bool takes(psys_system *s)
 {
     psys_ode o = psys_system_ode(s);
@@ -533,6 +649,7 @@ static const check_case cases[] = {
     {"chooses_path", chooses_path},
     {"chain_same_bits", chain_same_bits},
     {"shuffled_same_physics", shuffled_same_physics},
+    {"state_order_same_bits", state_order_same_bits},
     {NULL, NULL},
 };
 
