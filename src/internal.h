@@ -137,12 +137,15 @@ struct psys_system {
                                       rank owns (pair rows to compute), 0 for ghosts; NULL = all */
     /* During a step of psys__advance in the springs' internal order
      * (psys__state_order_begin): slot i of the ODE's state holds particle
-     * ode_perm[i] (i < ode_perm_n; beyond, particle i), and ode_mass,
-     * ode_inv_mass (ode_cap entries) the masses in slot order. NULL: the
-     * particles' own order, as always outside such a step. */
+     * ode_perm[i] (i < ode_perm_n; beyond, particle i), ode_mass and
+     * ode_inv_mass (ode_cap entries) the masses in slot order, and
+     * ode_slot[p] the slot of particle p (filled only with controlled
+     * particles, for the projection). NULL: the particles' own order, as
+     * always outside such a step. */
     const uint32_t *ode_perm;
     size_t ode_perm_n, ode_cap;
     double *ode_mass, *ode_inv_mass;
+    uint32_t *ode_slot;
     psys_error err;
 };
 
@@ -284,8 +287,8 @@ void psys__order_scatter(const uint32_t *perm, size_t perm_n, size_t n, int widt
                          int nt);
 /** Before a step of psys__advance: hold the solver's state in the springs'
  *  internal order for this step where that gives the same bits (an
- *  elementwise solver on the system's own ODE, the fused derivative, no
- *  controlled particles) and the springs have such an order; true if so,
+ *  elementwise solver on the system's own ODE, the fused derivative) and
+ *  the springs have such an order; true if so,
  *  until psys__state_order_end. PSYS_STATE_ORDER=0 in the environment
  *  keeps the particles' order. */
 bool psys__state_order_begin(psys_system *s, const psys_solver *solver);

@@ -67,6 +67,7 @@ void psys_system_destroy(psys_system *s)
     free(s->forces);
     free(s->ode_mass);
     free(s->ode_inv_mass);
+    free(s->ode_slot);
 #ifdef PSYS_MPI
     psys__dist_free(s->dist);
 #endif
@@ -475,6 +476,8 @@ static void ode_project(void *ctx, double t, double *y)
     double *x = y, *v = y + s->n * (size_t)d;
     for (size_t k = 0; k < s->nctrl; k++) {
         size_t i = s->ctrl[k].particle;
+        if (s->ode_perm) /* y in the springs' order */
+            i = s->ode_slot[i];
         psys__controller_eval(&s->ctrl[k], d, t, x + i * d, v + i * d);
     }
 }
@@ -646,7 +649,7 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
                      o->set_state == ode_set_state && o->derivative == ode_derivative &&
                      o->acceleration == ode_acceleration && o->derivative_stage == ode_derivative_stage &&
                      o->derivative_chain == ode_derivative_chain && o->project == ode_project;
-    if (!own || !solver->cls->elementwise || s->nctrl || s->nplanes || s->dist)
+    if (!own || !solver->cls->elementwise || s->nplanes || s->dist)
         return false;
     const char *env = getenv("PSYS_STATE_ORDER");
     if (env && env[0] == '0')
@@ -662,13 +665,19 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
         double *im = psys__realloc(s->ode_inv_mass, s->n, sizeof(double));
         if (im)
             s->ode_inv_mass = im;
-        if (!m || !im)
+        uint32_t *slot = psys__realloc(s->ode_slot, s->n, sizeof(uint32_t));
+        if (slot)
+            s->ode_slot = slot;
+        if (!m || !im || !slot)
             return false; /* the particles' order, which needs no more memory */
         s->ode_cap = s->n;
     }
     const int nt = psys_system_effective_threads(s);
     psys__order_gather(perm, perm_n, s->n, 1, s->mass, s->ode_mass, nt);
     psys__order_gather(perm, perm_n, s->n, 1, s->inv_mass, s->ode_inv_mass, nt);
+    if (s->nctrl) /* the projection finds its particles' slots */
+        for (size_t i = 0; i < s->n; i++)
+            s->ode_slot[i < perm_n ? perm[i] : i] = (uint32_t)i;
     s->ode_perm = perm;
     s->ode_perm_n = perm_n;
     return true;
