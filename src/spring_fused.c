@@ -253,13 +253,13 @@ static FUSED_INLINE void accel(const double *restrict im, const double *restrict
     /* The products are formed unconditionally and then selected, so the
      * loop needs no masked loads (the same values: f·w where w ≠ 0). */
     if (d == 2) {
-        for (size_t j = 0; j < cnt; j++) {
+        for (size_t j = 0; j < cnt; j++) { /* vectorised (tests/cli/vectorised.sh) */
             const double w = im[j], a0 = f0[j] * w, a1 = f1[j] * w;
             acc[2 * j] = w != 0 ? a0 : 0.0;
             acc[2 * j + 1] = w != 0 ? a1 : 0.0;
         }
     } else {
-        for (size_t j = 0; j < cnt; j++) {
+        for (size_t j = 0; j < cnt; j++) { /* vectorised (tests/cli/vectorised.sh) */
             const double w = im[j], a0 = f0[j] * w, a1 = f1[j] * w, a2 = f2[j] * w;
             acc[3 * j] = w != 0 ? a0 : 0.0;
             acc[3 * j + 1] = w != 0 ? a1 : 0.0;
@@ -369,7 +369,7 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     double *restrict F0 = Fk, *restrict F1 = Fk + SPRING_BLOCK, *restrict F2 = Fk + 2 * SPRING_BLOCK;
     if (d == 2) {
         FUSED_IVDEP
-        for (size_t j = 0; j < len; j++) {
+        for (size_t j = 0; j < len; j++) { /* vectorised (tests/cli/vectorised.sh) */
             const ptrdiff_t jb = (ptrdiff_t)j + o;
             double l0 = x0[j] - x0[jb], l1 = x1[j] - x1[jb];
             double d0 = v0[j] - v0[jb], d1 = v1[j] - v1[jb];
@@ -391,7 +391,7 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     const double *x2 = r0 + 2 * S, *v2 = r0 + 5 * S;
     double *f2 = r0 + 8 * S;
     FUSED_IVDEP
-    for (size_t j = 0; j < len; j++) {
+    for (size_t j = 0; j < len; j++) { /* vectorised (tests/cli/vectorised.sh) */
         const ptrdiff_t jb = (ptrdiff_t)j + o;
         double l0 = x0[j] - x0[jb], l1 = x1[j] - x1[jb], l2 = x2[j] - x2[jb];
         double d0 = v0[j] - v0[jb], d1 = v1[j] - v1[jb], d2 = v2[j] - v2[jb];

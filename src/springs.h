@@ -120,7 +120,7 @@ static inline void run_forces_d(const double *restrict X, const double *restrict
     const double *restrict xa2 = X + 2 * cap + lo, *restrict xb2 = X + 2 * cap + hi;
     const double *restrict va2 = V + 2 * cap + lo, *restrict vb2 = V + 2 * cap + hi;
     double *restrict F0 = F, *restrict F1 = F + SPRING_BLOCK, *restrict F2 = F + 2 * SPRING_BLOCK;
-    for (size_t j = 0; j < len; j++) {
+    for (size_t j = 0; j < len; j++) { /* vectorised (tests/cli/vectorised.sh) */
         double l0 = xa0[j] - xb0[j], l1 = xa1[j] - xb1[j];
         double d0 = va0[j] - vb0[j], d1 = va1[j] - vb1[j];
         double len2 = l0 * l0 + l1 * l1, dot = d0 * l0 + d1 * l1, l2 = 0;
