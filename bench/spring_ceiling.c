@@ -26,6 +26,13 @@
  *   stage. Its check (a middle particle's height) must match ideal-cloth's
  *   to 1e-9 relative, or the program exits with status 1.
  *
+ * CEILING_RSQRT=1 in the environment: the AVX-512 spring law takes 1/|l|
+ * from the hardware's 14-bit reciprocal square root and two Newton steps
+ * (|l| = |l|²·(1/|l|)) instead of a square root and a division: not
+ * correctly rounded, and its bits may differ between CPUs, so nothing psys
+ * could ship as it is; it measures what the loop costs without the divider
+ * ("law" in the ideal-cloth lines: "sqrt-div" or "rsqrt14").
+ *
  * Same compiler flags as the library (no FMA, no fast math). */
 #include <math.h>
 #include <stdio.h>
@@ -41,6 +48,9 @@
 
 #define CHUNK 8
 #define KINDS 6
+
+/* CEILING_RSQRT=1: the approximate spring law (above); read once in main. */
+static int approx_rsqrt;
 
 static double now(void)
 {
@@ -148,7 +158,18 @@ __attribute__((target("avx512f"))) static inline __m512d spring8(const __m512d x
                                        _mm512_mul_pd(e[2], e[2]));
     const __m512d dot = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dv[0], e[0]), _mm512_mul_pd(dv[1], e[1])),
                                       _mm512_mul_pd(dv[2], e[2]));
-    const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(one, L);
+    __m512d L, inv;
+    if (approx_rsqrt) {
+        const __m512d h = _mm512_mul_pd(_mm512_set1_pd(0.5), len2), th = _mm512_set1_pd(1.5);
+        __m512d y = _mm512_rsqrt14_pd(len2);
+        y = _mm512_mul_pd(y, _mm512_sub_pd(th, _mm512_mul_pd(h, _mm512_mul_pd(y, y))));
+        y = _mm512_mul_pd(y, _mm512_sub_pd(th, _mm512_mul_pd(h, _mm512_mul_pd(y, y))));
+        inv = y;
+        L = _mm512_mul_pd(len2, inv);
+    } else {
+        L = _mm512_sqrt_pd(len2);
+        inv = _mm512_div_pd(one, L);
+    }
     const __m512d m = _mm512_mul_pd(_mm512_add_pd(_mm512_mul_pd(ks, _mm512_sub_pd(L, _mm512_loadu_pd(rest))),
                                                   _mm512_mul_pd(_mm512_mul_pd(kd, dot), inv)),
                                     inv);
@@ -297,6 +318,9 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: spring_ceiling [N ≥ 3] [STEPS ≥ 1]\n");
         return 2;
     }
+    const char *rs = getenv("CEILING_RSQRT");
+    approx_rsqrt = rs && rs[0] == '1';
+    const char *law = approx_rsqrt ? "rsqrt14" : "sqrt-div";
     /* the divider */
     const size_t m = 1024;
     double *dx = column(m), *dy = column(m);
@@ -370,8 +394,10 @@ int main(int argc, char **argv)
     }
     const double per = 1e9 / ((double)steps * (double)c.np);
     printf("{\"case\":\"ideal-cloth\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,\"derivative\":\"%s\","
-           "\"ns_per_particle_step\":%.2f,\"derivative_ns\":%.2f,\"stage_ns\":%.2f,\"check\":%.9g}\n",
-           n, c.np, steps, width, (t_der + t_stage) * per, t_der * per, t_stage * per, c.x[1][c.np / 2]);
+           "\"law\":\"%s\",\"ns_per_particle_step\":%.2f,\"derivative_ns\":%.2f,\"stage_ns\":%.2f,"
+           "\"check\":%.9g}\n",
+           n, c.np, steps, width, strcmp(width, "avx512f") == 0 ? law : "sqrt-div", (t_der + t_stage) * per,
+           t_der * per, t_stage * per, c.x[1][c.np / 2]);
 #ifdef HAVE512
     if (__builtin_cpu_supports("avx512f") && c.np % CHUNK == 0) {
         /* the fused variant from the same start: 3 state buffers of 6 rows */
@@ -403,9 +429,9 @@ int main(int argc, char **argv)
             fprintf(stderr, "spring_ceiling: the fused loop's check %.17g differs from %.17g\n", h2, h1);
             status = 1;
         }
-        printf("{\"case\":\"ideal-cloth-fused\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,"
+        printf("{\"case\":\"ideal-cloth-fused\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,\"law\":\"%s\","
                "\"ns_per_particle_step\":%.2f,\"check\":%.9g}\n",
-               n, c.np, steps, t * per, st[1][c.np / 2]);
+               n, c.np, steps, law, t * per, st[1][c.np / 2]);
     }
 #endif
     for (int i = 0; i < ncolumns; i++)
