@@ -102,11 +102,16 @@ typedef struct pair_grid {
     bool xq_cached;        /* xq holds xcache's positions, within the bounds xq_lo, xq_hi */
     double xq_lo[3], xq_hi[3];
     /* pair_group.c's copy of the full lists, interleaved by groups of
-     * gl_width consecutive rows (one load stream instead of one per row):
-     * entry k of row b·gl_width + l at gl[gl_start[b] + k·gl_width + l], as
-     * 4·j (the offset of j's record in xq), each row padded with its own
-     * index to its group's longest list */
+     * gl_width rows (one load stream instead of one per row): the rows of
+     * consecutive group slots, slot t being particle t or, with gl_cells,
+     * the particle in slot t of the cell order (cell_list, from the same
+     * build); entry k of slot b·gl_width + l's row at gl[gl_start[b] +
+     * k·gl_width + l], as 4·j (the offset of j's record in xq), each row
+     * padded with its own index to its group's longest list; gl_num[t] the
+     * length of slot t's row's list */
     uint32_t *gl;
+    uint32_t *gl_num;      /* cap */
+    bool gl_cells;
     size_t gl_cap;
     size_t *gl_start;      /* gl_start_cap: groups + 1 */
     size_t gl_start_cap;

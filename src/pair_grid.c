@@ -53,6 +53,7 @@ void psys__pair_grid_free(pair_grid *g)
     free(g->tcnt);
     free(g->xq_mem);
     free(g->gl);
+    free(g->gl_num);
     free(g->gl_start);
     free(g->win);
     memset(g, 0, sizeof *g);
@@ -79,6 +80,7 @@ bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim)
     GROW(nb_start, cap, size_t)
     GROW(nb_start2, cap, size_t)
     GROW(nb_num, cap, uint32_t)
+    GROW(gl_num, cap, uint32_t)
     GROW(changed, cap, uint32_t)
     GROW(xq_mem, cap * 4 + 4, double)
     g->xq = (double *)(((uintptr_t)g->xq_mem + 31) & ~(uintptr_t)31);

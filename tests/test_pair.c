@@ -808,6 +808,75 @@ static void grid_partial_sparse_groups(void)
     }
 }
 
+/* The grid's groups of rows (pair_group.c) follow the particles' numbering
+ * where it is local (a lattice numbered row by row) and the cell order
+ * where it is not (the same lattice numbered at random): both give
+ * direct's forces bit for bit, through full evaluations, partial ones (15
+ * particles moved, one across a face, or 600) and rebuilds, on one and two
+ * threads. */
+static void grid_groups_any_numbering(void)
+{
+    const size_t side = 17, n = side * side * side;
+    const double L = 0.2 * (double)side, lo[3] = {0, 0, 0}, hi[3] = {L, L, L};
+    const bool per[3] = {true, true, true};
+    const psys_pair_def grid = lj_def(0.1, 0.01, 0.3, 0.05, PSYS_PAIR_GRID);
+    const psys_pair_def direct = lj_def(0.1, 0.01, 0.3, 0.05, PSYS_PAIR_DIRECT);
+    urand_seed(29);
+    psys_system *lat = jittered_lattice(3, n, 0.2, 0.02, false);
+    size_t *pi = malloc(n * sizeof *pi);
+    for (size_t i = 0; i < n; i++)
+        pi[i] = i;
+    for (size_t i = n - 1; i > 0; i--) {
+        size_t j = (size_t)urand(0, (double)(i + 1));
+        j = j > i ? i : j;
+        const size_t t = pi[i];
+        pi[i] = pi[j];
+        pi[j] = t;
+    }
+    for (int shuffled = 0; shuffled < 2; shuffled++)
+        for (int threads = 1; threads <= 2; threads++) {
+            psys_system *a = make_system(3);
+            for (size_t q = 0; q < n; q++)
+                add_particle(a, psys_system_positions(lat) + 3 * (shuffled ? pi[q] : q), NULL, 1.0);
+            CHECK(psys_system_set_box(a, lo, hi, per) == PSYS_OK);
+            const size_t k = add_pair(a, &grid);
+            CHECK(psys_system_set_threads(a, threads) == PSYS_OK);
+            for (int round = 0; round < 6; round++) {
+                double *fa = forces_of(a);
+                if (group_loops_run()) /* the grouping this numbering takes */
+                    CHECK(((const pair_force *)psys_system_force_data(a, k))->grid.gl_cells == (shuffled == 1));
+                psys_system *b = make_system(3);
+                for (size_t i = 0; i < n; i++)
+                    add_particle(b, psys_system_positions(a) + 3 * i, NULL, 1.0);
+                CHECK(psys_system_set_box(b, lo, hi, per) == PSYS_OK);
+                add_pair(b, &direct);
+                double *fb = forces_of(b);
+                CHECK(memcmp(fa, fb, 3 * n * sizeof(double)) == 0);
+                free(fa);
+                free(fb);
+                psys_system_destroy(b);
+                const size_t count = round == 4 ? n : round % 2 ? 600 : 15;
+                for (size_t q = 0; q < count; q++) {
+                    const size_t i = round % 2 || round == 4 ? q : 4100 + 53 * q;
+                    double x[3];
+                    memcpy(x, psys_system_positions(a) + 3 * i, sizeof x);
+                    for (int c = 0; c < 3; c++)
+                        x[c] += round == 4 ? urand(-0.03, 0.03) : urand(-0.004, 0.004);
+                    if (q == 0 && !(round % 2))
+                        x[0] += x[0] < 0.5 * L ? L : -L;
+                    CHECK(psys_system_set_particle(a, i, x, NULL) == PSYS_OK);
+                }
+            }
+            psys_pair_stats st;
+            CHECK(psys_system_pair_stats(a, k, &st) == PSYS_OK);
+            CHECK(st.partial >= 3 && st.rebuilds >= 2 && st.fallbacks == 0);
+            CHECK(group_loops_run() ? st.grouped > 0 : st.grouped == 0);
+            psys_system_destroy(a);
+        }
+    free(pi);
+    psys_system_destroy(lat);
+}
+
 /* A pair at exactly the cutoff adds nothing in the vector loops (the
  * eight-lane loop tests 0 < r² < rc² on the bits): 16 particles on a line,
  * 0 and 1 at r = rc = 0.5 (r² = rc² exactly), 2 and 3 at 0.49, the others
@@ -1863,6 +1932,7 @@ static const check_case cases[] = {
     {"grid_partial_matches_direct", grid_partial_matches_direct},
     {"grid_partial_keeps_unchanged_rows", grid_partial_keeps_unchanged_rows},
     {"grid_partial_sparse_groups", grid_partial_sparse_groups},
+    {"grid_groups_any_numbering", grid_groups_any_numbering},
     {"cutoff_boundary_groups", cutoff_boundary_groups},
     {"minimum_image", minimum_image},
     {"minimum_image_far", minimum_image_far},

@@ -2,7 +2,7 @@ psys_c_test(test_pair
   gravity_hand_values coulomb_hand_values lennard_jones_hand_values soft_repulsion_hand_values
   user_law_hand_values user_law_grid_equals_direct newton_third_law lj_cluster_energy sort_lists
   grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_periodic_2d grid_equals_direct_periodic_3d grid_equals_direct_dense grid_equals_direct_lattice grid_lists_keep_radius
-  grid_rebuild_criterion grid_rebuild_criterion_all_moved grid_cache_matches_direct grid_partial_matches_direct grid_partial_keeps_unchanged_rows grid_partial_sparse_groups cutoff_boundary_groups minimum_image minimum_image_far minimum_image_far_groups wrapping box_validation
+  grid_rebuild_criterion grid_rebuild_criterion_all_moved grid_cache_matches_direct grid_partial_matches_direct grid_partial_keeps_unchanged_rows grid_partial_sparse_groups grid_groups_any_numbering cutoff_boundary_groups minimum_image minimum_image_far minimum_image_far_groups wrapping box_validation
   thread_determinism_grid thread_determinism_direct_bh barnes_hut_error_2d barnes_hut_error_3d kepler_orbit_closes figure_eight_returns jacobians_match_differences
   particles_added_later scene_round_trip checkpoint_resume_bit_exact scene_bad_input)
 # Threads sleep rather than spin between parallel regions: ctest runs tests
@@ -21,7 +21,7 @@ foreach(case grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_peri
 endforeach()
 # And four rows at a time where the CPU would take eight (AVX-512): the same bits.
 foreach(case grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_periodic_3d grid_equals_direct_lattice grid_partial_matches_direct
-             grid_partial_keeps_unchanged_rows grid_partial_sparse_groups cutoff_boundary_groups grid_cache_matches_direct minimum_image_far_groups thread_determinism_grid)
+             grid_partial_keeps_unchanged_rows grid_partial_sparse_groups grid_groups_any_numbering cutoff_boundary_groups grid_cache_matches_direct minimum_image_far_groups thread_determinism_grid)
   add_test(NAME test_pair.group4.${case} COMMAND test_pair ${case})
 endforeach()
 # And with the AVX-512 build's window in double precision (it takes single
