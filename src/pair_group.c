@@ -1,6 +1,8 @@
 /* Grid pair forces four rows at a time (AVX2 with FMA): the lanes of a
- * vector are four consecutive particles i, each walking its own neighbour
- * list.
+ * vector are four rows i, each walking its own neighbour list: consecutive
+ * particles, or consecutive slots of the grid's cell order where the
+ * particles' numbering is not local (psys__pair_group_lists), so that a
+ * group's rows are near each other in space either way.
  *
  * Why: the row kernel (pair_row_forces) vectorises over a particle's
  * partners and then adds their forces one after another, a chain of additions
