@@ -570,7 +570,7 @@ static void group_chunk(const pair_force *p, const pair_image *m, const group_ct
     }
 }
 
-/* The rows of `rows` in slots [r0, r1) of the cell order eight at a time,
+/* The rows of `rows` in group slots [r0, r1) (group_row) eight at a time,
  * wherever they are (a partial evaluation: the moved particles and their
  * partners), so a group computes eight of them instead of the few that
  * fall in one group. The last group repeats its last row in its spare
@@ -642,8 +642,8 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
      * consecutive slots of the cell order: either way rows near each other
      * in space, whose partners are mostly the same particles, so the
      * records a group reads are in cache from the groups before it (random
-     * numbering, 256,000 LJ atoms: 445-497 against 366 ns per atom-step,
-     * bench/README.md). Each row's sum is the same however rows are
+     * numbering, 256,000 LJ atoms: 429-458 against 369-392 ns per
+     * atom-step, bench/README.md). Each row's sum is the same however rows are
      * grouped: the bits do not depend on it. */
     size_t local = 0;
     for (size_t i = 0; i + 1 < n; i++) {
