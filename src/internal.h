@@ -278,13 +278,11 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
  *  particles) when the fused derivative takes sys and the springs have one
  *  (builds the plan); NULL otherwise. */
 const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n);
-/** Rows of `width` doubles from particle order into slot order:
- *  dst[i] = src[perm[i]] (i < perm_n; beyond, src[i]), n rows, on nt threads. */
-void psys__order_gather(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
-                        int nt);
-/** The inverse of psys__order_gather: dst[perm[i]] = src[i]. */
-void psys__order_scatter(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
-                         int nt);
+/** Rows of `width` doubles between particle order and slot order: with
+ *  to_particles false dst[i] = src[perm[i]] (i < perm_n; beyond, src[i]),
+ *  else dst[perm[i]] = src[i]; n rows, on nt threads. */
+void psys__order_copy(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
+                      bool to_particles, int nt);
 /** Before a step of psys__advance: hold the solver's state in the springs'
  *  internal order for this step where that gives the same bits (an
  *  elementwise solver on the system's own ODE, the fused derivative) and

@@ -133,10 +133,8 @@ static inline void rows_at(double *rb, size_t S, int q, int d, size_t i0, double
 #define PERM_AHEAD 8
 #if defined(__GNUC__)
 #define PERM_PREFETCH(p) __builtin_prefetch(p)
-#define PERM_PREFETCH_W(p) __builtin_prefetch(p, 1)
 #else
 #define PERM_PREFETCH(p) ((void)(p))
-#define PERM_PREFETCH_W(p) ((void)(p))
 #endif
 
 /* enter() for slots [a, a + cnt) in the springs' internal order: x, v and
@@ -845,32 +843,19 @@ const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n)
     return s->perm;
 }
 
-void psys__order_gather(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
-                        int nt)
+void psys__order_copy(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
+                      bool to_particles, int nt)
 {
     const size_t w = (size_t)width;
+    /* the side indexed by particle is read or written all over memory */
+    const double *ahead = to_particles ? dst : src;
     (void)nt;
     PSYS_PAR_FOR(nt, n * w)
     for (size_t i = 0; i < n; i++) {
-        const size_t p = i < perm_n ? perm[i] : i;
-        if (i + 4 * PERM_AHEAD < perm_n) /* the rows come from all over memory */
-            PERM_PREFETCH(src + perm[i + 4 * PERM_AHEAD] * w);
-        for (size_t c = 0; c < w; c++)
-            dst[i * w + c] = src[p * w + c];
-    }
-}
-
-void psys__order_scatter(const uint32_t *perm, size_t perm_n, size_t n, int width, const double *src, double *dst,
-                         int nt)
-{
-    const size_t w = (size_t)width;
-    (void)nt;
-    PSYS_PAR_FOR(nt, n * w)
-    for (size_t i = 0; i < n; i++) {
-        const size_t p = i < perm_n ? perm[i] : i;
+        const size_t p = i < perm_n ? perm[i] : i, from = to_particles ? i : p, to = to_particles ? p : i;
         if (i + 4 * PERM_AHEAD < perm_n)
-            PERM_PREFETCH_W(dst + perm[i + 4 * PERM_AHEAD] * w);
+            PERM_PREFETCH(ahead + perm[i + 4 * PERM_AHEAD] * w);
         for (size_t c = 0; c < w; c++)
-            dst[p * w + c] = src[i * w + c];
+            dst[to * w + c] = src[from * w + c];
     }
 }

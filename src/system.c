@@ -444,8 +444,8 @@ static void ode_get_state(void *ctx, double *y)
         return;
     int nt = psys_system_effective_threads(s);
     if (s->ode_perm) {
-        psys__order_gather(s->ode_perm, s->ode_perm_n, s->n, s->dim, s->x, y, nt);
-        psys__order_gather(s->ode_perm, s->ode_perm_n, s->n, s->dim, s->v, y + nd, nt);
+        psys__order_copy(s->ode_perm, s->ode_perm_n, s->n, s->dim, s->x, y, false, nt);
+        psys__order_copy(s->ode_perm, s->ode_perm_n, s->n, s->dim, s->v, y + nd, false, nt);
         return;
     }
     par_copy(nt, y, s->x, nd);
@@ -460,8 +460,8 @@ static void ode_set_state(void *ctx, const double *y)
         return;
     int nt = psys_system_effective_threads(s);
     if (s->ode_perm) {
-        psys__order_scatter(s->ode_perm, s->ode_perm_n, s->n, s->dim, y, s->x, nt);
-        psys__order_scatter(s->ode_perm, s->ode_perm_n, s->n, s->dim, y + nd, s->v, nt);
+        psys__order_copy(s->ode_perm, s->ode_perm_n, s->n, s->dim, y, s->x, true, nt);
+        psys__order_copy(s->ode_perm, s->ode_perm_n, s->n, s->dim, y + nd, s->v, true, nt);
         return;
     }
     par_copy(nt, s->x, y, nd);
@@ -673,8 +673,8 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
         s->ode_cap = s->n;
     }
     const int nt = psys_system_effective_threads(s);
-    psys__order_gather(perm, perm_n, s->n, 1, s->mass, s->ode_mass, nt);
-    psys__order_gather(perm, perm_n, s->n, 1, s->inv_mass, s->ode_inv_mass, nt);
+    psys__order_copy(perm, perm_n, s->n, 1, s->mass, s->ode_mass, false, nt);
+    psys__order_copy(perm, perm_n, s->n, 1, s->inv_mass, s->ode_inv_mass, false, nt);
     if (s->nctrl) /* the projection finds its particles' slots */
         for (size_t i = 0; i < s->n; i++)
             s->ode_slot[i < perm_n ? perm[i] : i] = (uint32_t)i;

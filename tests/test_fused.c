@@ -198,6 +198,15 @@ static double *fused_derivative(psys_system *s, const double *y, int threads)
     return ydot;
 }
 
+/* The first index at which got and want differ in their bits (size if none). */
+static size_t first_difference(const double *got, const double *want, size_t size)
+{
+    for (size_t i = 0; i < size; i++)
+        if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
+            return i;
+    return size;
+}
+
 static void derivative_same_bits(void)
 {
     for (int kind = 0; kind < NKINDS; kind++) {
@@ -208,10 +217,7 @@ static void derivative_same_bits(void)
         double *want = generic_derivative(s, y);
         for (int threads = 1; threads <= 3; threads++) {
             double *got = fused_derivative(s, y, threads);
-            size_t bad = o.size;
-            for (size_t i = 0; i < o.size && bad == o.size; i++)
-                if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
-                    bad = i;
+            const size_t bad = first_difference(got, want, o.size);
             if (bad != o.size)
                 fprintf(stderr, "kind %d, %d threads: ydot[%zu] = %.17g, generic %.17g\n", kind, threads, bad,
                         got[bad], want[bad]);
@@ -428,10 +434,7 @@ static void chain_same_bits(void)
                 if (run == 0) {
                     want = got;
                 } else {
-                    size_t bad = size;
-                    for (size_t i = 0; i < size && bad == size; i++)
-                        if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
-                            bad = i;
+                    const size_t bad = first_difference(got, want, size);
                     if (bad != size)
                         fprintf(stderr, "%s, kind %d, %d threads: y[%zu] = %.17g, stage by stage %.17g\n",
                                 solvers[k], kind, run, bad, got[bad], want[bad]);
@@ -525,10 +528,7 @@ static void state_order_same_bits(void)
                 if (run == 0) {
                     want = got;
                 } else {
-                    size_t bad = size;
-                    for (size_t i = 0; i < size && bad == size; i++)
-                        if (memcmp(&got[i], &want[i], sizeof(double)) != 0)
-                            bad = i;
+                    const size_t bad = first_difference(got, want, size);
                     if (bad != size)
                         fprintf(stderr, "%s, variant %d, %d threads: y[%zu] = %.17g, particles' order %.17g\n",
                                 solvers[k], variant, run, bad, got[bad], want[bad]);
