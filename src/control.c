@@ -120,6 +120,7 @@ static psys_status install(psys_system *sys, psys__controller *c)
     sys->ctrl[k] = *c;
     sys->flags[i] |= PSYS_PARTICLE_CONTROLLED;
     sys->inv_mass[i] = 0.0; /* the solver must not accelerate it */
+    sys->epoch++;
     int d = sys->dim;
     psys__controller_eval(c, d, sys->t, sys->x + i * d, sys->v + i * d);
     return PSYS_OK;
@@ -258,5 +259,6 @@ psys_status psys_system_release(psys_system *sys, size_t i)
     sys->ctrl[k] = sys->ctrl[--sys->nctrl];
     sys->flags[i] &= (unsigned char)~PSYS_PARTICLE_CONTROLLED;
     sys->inv_mass[i] = 1.0 / sys->mass[i];
+    sys->epoch++;
     return PSYS_OK;
 }

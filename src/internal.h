@@ -146,6 +146,15 @@ struct psys_system {
     size_t ode_perm_n, ode_cap;
     double *ode_mass, *ode_inv_mass;
     uint32_t *ode_slot;
+    /* What ode_mass, ode_inv_mass and ode_slot were last filled for, so a
+     * step does not gather them again (O(n) reads all over memory) while
+     * nothing they depend on changed: the springs' plan, and `epoch`,
+     * which every new particle or force (a new spring set comes as one),
+     * every change of fixedness and every controller taken or released
+     * advances (particles removed from the end leave the others' slots as
+     * they were). */
+    unsigned long epoch, ode_epoch;
+    unsigned ode_plan;
     psys_error err;
 };
 
@@ -276,8 +285,8 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
                               const psys_stage_pass *pass, bool *used);
 /** The springs' internal order (slot -> particle, covering *perm_n
  *  particles) when the fused derivative takes sys and the springs have one
- *  (builds the plan); NULL otherwise. */
-const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n);
+ *  (builds the plan), with the plan's version in *plan; NULL otherwise. */
+const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n, unsigned *plan);
 /** Rows of `width` doubles between particle order and slot order: with
  *  to_particles false dst[i] = src[perm[i]] (i < perm_n; beyond, src[i]),
  *  else dst[perm[i]] = src[i]; n rows, on nt threads. */

@@ -714,6 +714,7 @@ static int redistribute_once(psys__domain *D)
         memcpy(D->xref + t * d, rec + REC_HEAD, (size_t)d * sizeof(double));
     }
     s->n = m;
+    s->epoch++; /* new particles and masses */
     if (D->charges)
         s->ncharge = m;
     D->nloc = m;
@@ -1136,6 +1137,7 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
                 s->charge[i] = i < g->ncharge ? g->charge[i] : 0.0;
         }
         s->n = n;
+        s->epoch++;
         if (D->charges)
             s->ncharge = n;
         D->nloc = n;

@@ -833,13 +833,14 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
  * and stage. The state moves between the two orders once per step (the
  * solver's get_state and commit) instead of at every stage. */
 
-const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n)
+const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n, unsigned *plan)
 {
     fused fz;
     if (!eligible(sys, &fz) || psys__springs_prepare_rings(sys->springs, sys->n, 1) != PSYS_OK)
         return NULL;
     const springs *s = sys->springs;
     *perm_n = s->perm_n;
+    *plan = s->plan_version;
     return s->perm;
 }
 

@@ -224,6 +224,7 @@ psys_status psys__system_add_particle_unique(psys_system *s, const double *x, co
     if (copy)
         id_index_put(s, i);
     s->n++;
+    s->epoch++;
     if (index)
         *index = i;
     return PSYS_OK;
@@ -256,6 +257,7 @@ psys_status psys_system_set_fixed(psys_system *s, size_t i, bool fixed)
         return psys__fail(&s->err, PSYS_ERR_INVALID, "no particle %zu", i);
     if (fixed && (s->flags[i] & PSYS_PARTICLE_CONTROLLED))
         return psys__fail(&s->err, PSYS_ERR_INVALID, "particle %zu is controlled; release it before fixing it", i);
+    s->epoch++;
     if (fixed) {
         s->flags[i] |= PSYS_PARTICLE_FIXED;
         s->inv_mass[i] = 0.0; /* a = f/m becomes 0 with no branch in the hot loop */
@@ -309,6 +311,7 @@ psys_status psys_system_add_force(psys_system *s, const psys_force_class *cls, v
     s->forces[s->nforces].cls = cls;
     s->forces[s->nforces].data = data;
     s->nforces++;
+    s->epoch++;
     return PSYS_OK;
 }
 
@@ -655,9 +658,17 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
     if (env && env[0] == '0')
         return false;
     size_t perm_n = 0;
-    const uint32_t *perm = psys__fused_order(s, &perm_n);
+    unsigned plan = 0;
+    const uint32_t *perm = psys__fused_order(s, &perm_n, &plan);
     if (!perm)
         return false;
+    if (s->ode_epoch == s->epoch && s->ode_plan == plan) {
+        /* the masses and slots of the last step still hold (the order
+         * covers more particles only when some were added: a new epoch) */
+        s->ode_perm = perm;
+        return true;
+    }
+    s->ode_epoch = s->epoch - 1; /* not valid until filled */
     if (s->ode_cap < s->n) {
         double *m = psys__realloc(s->ode_mass, s->n, sizeof(double));
         if (m)
@@ -680,6 +691,8 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
             s->ode_slot[i < perm_n ? perm[i] : i] = (uint32_t)i;
     s->ode_perm = perm;
     s->ode_perm_n = perm_n;
+    s->ode_epoch = s->epoch;
+    s->ode_plan = plan;
     return true;
 }
 

@@ -1,6 +1,7 @@
 # The fused derivative (src/spring_fused.c): the same bits as the generic one.
 psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path chain_same_bits shuffled_same_physics
-  state_order_same_bits)
+  state_order_same_bits
+  state_order_cache)
 # The determinism checks again with the fused derivative forced (it then
 # also runs small spring sets on several threads), and with it off (the
 # generic path, which systems with planes, pair forces, mouse springs and
