@@ -326,6 +326,7 @@ static int bench_system(const char *name, psys_system *sys, const char *integrat
             printf("\"floor_ns_per_particle_step\":%.2f,\"times_floor\":%.3f,", fb / o->gbs, nsp / (fb / o->gbs));
         else
             printf("\"floor_ns_per_particle_step\":null,\"times_floor\":null,");
+        printf("\"flush_subnormals\":%s,", psys_fpu_flushes_subnormals() ? "true" : "false");
         /* how scattered the users' numbering is: a row-ordered sheet's
          * springs join particles about a row apart, a shuffled one's about
          * a third of the particles apart (the solver reorders internally) */

@@ -1,6 +1,7 @@
 /* psys: the command-line program (DESIGN §3). */
 #include "cli.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 #ifdef PSYS_HAVE_VIEW
@@ -72,6 +73,10 @@ static const char usage[] =
 
 int main(int argc, char **argv)
 {
+    /* Before any thread exists, so every thread inherits it: subnormal
+     * results flushed to zero (docs/cli.md, "Floating point") */
+    const char *flush = getenv("PSYS_FLUSH_SUBNORMALS");
+    psys_fpu_flush_subnormals(!(flush && flush[0] == '0'));
     if (argc < 2) {
         fputs(usage, stderr);
         return EXIT_BAD_INPUT;

@@ -43,6 +43,19 @@ typedef struct psys_error {
 /** Short name of a status code ("ok", "invalid", ...). */
 const char *psys_status_name(psys_status s);
 
+/** Flush results too small for a normal double (below 2.2e-308) to zero in
+ *  the calling thread (x86-64 flush-to-zero mode), and in the threads it
+ *  creates from then on, OpenMP's included: call it before the first
+ *  parallel step, or worker threads that exist already keep their mode and
+ *  results could depend on the thread count. Such numbers appear ahead of
+ *  a cloth's disturbance front and can make a step several times slower;
+ *  the psys program turns flushing on at start (docs/api.md). The library
+ *  never changes the mode by itself. False (nothing changed) where the CPU
+ *  has no such mode. */
+bool psys_fpu_flush_subnormals(bool on);
+/** True if the calling thread flushes subnormal results to zero. */
+bool psys_fpu_flushes_subnormals(void);
+
 /* ------------------------------------------------------------------ */
 /* ODE interface (notes §3): size, get state, set state, derivative,   */
 /* clock. Solvers know nothing else about the system they step.        */
