@@ -4,7 +4,9 @@
 # interleaved in one run; prints each side's median ns per particle-step and
 # their ratio per size. Usage: bench/cloth_vs_ref.sh [BUILD_DIR] [ROUNDS] [SIZES]
 # (defaults: build, 3, "100 256 1024"). Needs gcc; the host's load shows in
-# both sides alike, so compare the ratios, not the absolute times.
+# both sides alike, so compare the ratios, not the absolute times. Both
+# sides flush subnormal results to zero (ref_cloth with FTZ=1), or neither
+# with PSYS_FLUSH_SUBNORMALS=0.
 set -eu
 BUILD=${1:-build}
 ROUNDS=${2:-3}
@@ -15,6 +17,11 @@ REF_SRC=${REF_SRC:-$HERE/../../shared/peers/ref_cloth.c}
 REF=${TMPDIR:-/tmp}/psys-ref_cloth
 gcc -O3 -march=native "$REF_SRC" -lm -o "$REF"
 export OMP_WAIT_POLICY=PASSIVE
+# like with like: psys flushes subnormal results to zero unless
+# PSYS_FLUSH_SUBNORMALS=0 (docs/cli.md), and ref_cloth does with FTZ=1
+REF_ENV="env FTZ=1"
+[ "${PSYS_FLUSH_SUBNORMALS:-1}" = 0 ] && REF_ENV=env
+echo "# subnormals: $([ "$REF_ENV" = env ] && echo kept || echo flushed) on both sides"
 BW=$("$BUILD/psys" bench cloth-100 --steps 1 --reps 1 | sed 's/.*"bandwidth_gbs":\([0-9.]*\).*/\1/')
 echo "# STREAM triad, 1 thread: $BW GB/s"
 median() { sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
@@ -23,7 +30,7 @@ for N in $SIZES; do
   for r in $(seq "$ROUNDS"); do
     "$BUILD/psys" bench cloth-$N --reps 3 --seconds 0.4 --bandwidth "$BW" --threads 1 | tee -a /tmp/psys-cvr-log \
       | sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-p1
-    "$REF" "$N" 3 0.4 | grep RESULT | sed 's/.*ns_per_particle_step=\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-r
+    $REF_ENV "$REF" "$N" 3 0.4 | grep RESULT | sed 's/.*ns_per_particle_step=\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-r
     if [ "$N" -ge 1024 ]; then
       "$BUILD/psys" bench cloth-$N --reps 3 --seconds 0.4 --bandwidth "$BW" --threads 2 | tee -a /tmp/psys-cvr-log \
         | sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-p2
