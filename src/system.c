@@ -666,6 +666,7 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
         /* the masses and slots of the last step still hold (the order
          * covers more particles only when some were added: a new epoch) */
         s->ode_perm = perm;
+        s->ode_perm_n = perm_n;
         return true;
     }
     s->ode_epoch = s->epoch - 1; /* not valid until filled */

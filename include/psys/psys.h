@@ -49,7 +49,7 @@ const char *psys_status_name(psys_status s);
  *  parallel step, or worker threads that exist already keep their mode and
  *  results could depend on the thread count. Such numbers appear ahead of
  *  a cloth's disturbance front and can make a step several times slower;
- *  the psys program turns flushing on at start (docs/api.md). The library
+ *  the psys program turns flushing on at start (docs/cli.md). The library
  *  never changes the mode by itself. False (nothing changed) where the CPU
  *  has no such mode. */
 bool psys_fpu_flush_subnormals(bool on);
