@@ -712,7 +712,9 @@ psys_status psys__springs_prepare_rings(springs *s, size_t np, int T)
     if (W > s->ring_w || T > s->ring_t) {
         size_t w = W > s->ring_w ? W : s->ring_w;
         int t = T > s->ring_t ? T : s->ring_t;
-        double *ring = psys__calloc((size_t)t * 9, psys__springs_ring_stride(w) * sizeof(double));
+        /* on cache lines: the fused loops read and write whole lines at
+         * slots that are multiples of 8 (spring_fused.c, run_pair) */
+        double *ring = psys__calloc_lines((size_t)t * 9, psys__springs_ring_stride(w) * sizeof(double));
         if (!ring)
             return PSYS_ERR_NOMEM;
         free(s->ring);

@@ -86,8 +86,9 @@ static inline size_t psys__part_first(size_t np, int T, int t)
 static inline size_t psys__springs_particle(const springs *s, size_t i) { return s->perm ? s->perm[i] : i; }
 
 /* Row stride of a fused-derivative window of w slots: padded so that its 9
- * rows do not all fall into the same cache sets (w is a power of 2). */
-static inline size_t psys__springs_ring_stride(size_t w) { return w + 24; }
+ * rows do not all fall into the same cache sets (w is a power of 2), and a
+ * multiple of 8, so that every row starts on a cache line as the first does. */
+static inline size_t psys__springs_ring_stride(size_t w) { return (w + 24 + 7) & ~(size_t)7; }
 
 /** Rest lengths at time t (rest[] itself without muscles). */
 const double *psys__springs_rest_now(springs *s, double t);

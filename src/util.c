@@ -58,6 +58,19 @@ void *psys__calloc(size_t n, size_t size)
     return calloc(n, size);
 }
 
+void *psys__calloc_lines(size_t n, size_t size)
+{
+    if (n == 0 || size == 0)
+        n = size = 1;
+    if (n > (SIZE_MAX - 63) / size)
+        return NULL;
+    const size_t bytes = n * size;
+    void *p = aligned_alloc(64, (bytes + 63) / 64 * 64);
+    if (p)
+        memset(p, 0, bytes);
+    return p;
+}
+
 void *psys__realloc(void *p, size_t n, size_t size)
 {
     if (n == 0 || size == 0)
