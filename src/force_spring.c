@@ -270,10 +270,18 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
             run_short(X, V, Fs, cap, SIZE_MAX, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, a0, a1, b0, b1, d);
             continue;
         }
-        if (s->run_uni[r])
-            run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, true, d);
-        else
-            run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, false, d);
+        /* from the first spring whose first end starts a cache line on, no
+         * vector of first ends straddles two lines (the same operations) */
+        const size_t to_line = (8 - (lo & 7)) & 7, h = to_line < len ? to_line : len;
+        const bool uni = s->run_uni[r];
+        if (h)
+            run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, h, F, uni, d, false);
+        if (len > h && uni)
+            run_forces_d(X, V, cap, lo + h, hi + h, s->pks + k + h, s->pkd + k + h, s->prest + k + h, len - h, F + h,
+                         true, d, true);
+        else if (len > h)
+            run_forces_d(X, V, cap, lo + h, hi + h, s->pks + k + h, s->pkd + k + h, s->prest + k + h, len - h, F + h,
+                         false, d, true);
         for (int c = 0; c < d; c++) {
             double *restrict fa = Fs + c * cap + lo, *restrict fb = Fs + c * cap + hi;
             const double *restrict Fc = F + c * SPRING_BLOCK;
@@ -735,10 +743,10 @@ psys_status psys__springs_prepare(void *set)
     if (st != PSYS_OK)
         return st;
     if (np > s->soa_cap) {
-        size_t cap = np + np / 8;
+        size_t cap = (np + np / 8 + 7) & ~(size_t)7; /* rows on cache lines (run_forces_d) */
         if (cap > SIZE_MAX / (9 * sizeof(double)))
             return PSYS_ERR_NOMEM;
-        double *soa = psys__calloc(cap * 9, sizeof(double));
+        double *soa = psys__calloc_lines(cap * 9, sizeof(double));
         if (!soa)
             return PSYS_ERR_NOMEM;
         free(s->soa);

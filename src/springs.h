@@ -102,19 +102,32 @@ psys_status psys__springs_prepare_rings(springs *s, size_t np, int T);
 /** Thread t's runs (rlo[t], rhi[t]) for np particles among T threads, cached. */
 void psys__springs_partition(springs *s, size_t np, int T);
 
+/* p, which the caller knows to lie on a 64-byte boundary. */
+#if defined(__GNUC__)
+#define SPRING_LINE(p) __builtin_assume_aligned((p), 64)
+#else
+#define SPRING_LINE(p) (p)
+#endif
+
 /* Forces of run springs j < len into F (component-major: F[c·SPRING_BLOCK + j]):
  *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
  * X, V: the SoA position and velocity components (stride cap), lo and hi
  * the runs' first particles at the two ends. uni: every spring takes ks[0]
  * and kd[0] (the run's springs share them; one load instead of one per
- * spring, the same values).
+ * spring, the same values). line: the rows start on cache lines, cap is a
+ * multiple of 8 and so is lo.
  * A spring of zero length has no direction and exerts no force. */
 static inline void run_forces_d(const double *restrict X, const double *restrict V, size_t cap, size_t lo,
                                 size_t hi, const double *restrict ks, const double *restrict kd,
                                 const double *restrict rest, size_t len, double *restrict F, const bool uni,
-                                const int d)
+                                const int d, const bool line)
 {
     const double ks0 = ks[0], kd0 = kd[0];
+    if (line) { /* slot lo starts a cache line in every row: so say so */
+        X = (const double *)SPRING_LINE(X + lo) - lo;
+        V = (const double *)SPRING_LINE(V + lo) - lo;
+        cap &= ~(size_t)7;
+    }
     const double *restrict xa0 = X + lo, *restrict xb0 = X + hi, *restrict va0 = V + lo, *restrict vb0 = V + hi;
     const double *restrict xa1 = X + cap + lo, *restrict xb1 = X + cap + hi;
     const double *restrict va1 = V + cap + lo, *restrict vb1 = V + cap + hi;
