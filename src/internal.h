@@ -277,8 +277,13 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
                                    const psys_stage_pass *pass, bool *used);
 /** Whether psys__fused_derivative takes sys as it is now. */
 bool psys__fused_eligible(const psys_system *sys);
-/** Whether psys__fused_chain takes sys for a step of `stages` stages. */
+/** Whether psys__fused_chain takes sys for a step of `stages` stages: asked
+ *  once before each step (a timed choice advances with it). */
 bool psys__fused_chain_eligible(psys_system *sys, int stages);
+/** Where the chain sweep and stage by stage were timed against each other
+ *  (springs reaching beyond 600 particles): 1 the chain was kept, 0 stage
+ *  by stage, -1 not chosen (yet, or never needed). */
+int psys__fused_chain_pick(const psys_system *sys);
 /** All stages of a chain Runge–Kutta step (psys_ode.derivative_chain) in
  *  one sweep: stage i on y_i (y0, then pass[i-1].next) with pass[i] applied;
  *  the bits of psys__fused_derivative stage after stage. *used false (and

@@ -22,9 +22,11 @@
  * thread count either. */
 #include "springs.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -765,8 +767,55 @@ static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, s
  * by stage. PSYS_CHAIN=1 runs it whenever it can (tests), 0 never. */
 #define CHAIN_AUTO_REACH 600
 
-/* Whether the chain takes sys for `stages` stages; fz gets its forces. */
-static bool chain_takes(psys_system *sys, int stages, fused *fz)
+/* Beyond that reach the two were measured either way round on different
+ * hosts (cloth-1024 rk4, bench/README.md: the chain 1.02-1.05 × the time of
+ * stage by stage on an Intel host, about 0.72 × on an AMD one), so there
+ * each system's first steps time both, alternating, CHAIN_TRIALS steps of
+ * each, and the mode whose fastest step was faster stays. A step's time
+ * runs from the solver asking whether the chain takes it to the next
+ * step's asking; the fastest of several leaves out a first step's set-up
+ * and the caller's work between steps. The same bits either way. */
+#define CHAIN_TRIALS 3
+
+static double chain_clock(void)
+{
+    struct timespec ts;
+    timespec_get(&ts, TIME_UTC);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The mode of the step the solver is asking about (1: the chain), by
+ * timing: at each asking, the step before it is timed. */
+static int chain_timed(psys_system *sys, springs *s)
+{
+    const int T = psys_system_effective_threads(sys);
+    const double now = chain_clock();
+    if (!s->chain.keyed || s->chain.plan != s->plan_version || s->chain.n != sys->n || s->chain.T != T) {
+        s->chain.keyed = true;
+        s->chain.plan = s->plan_version;
+        s->chain.n = sys->n;
+        s->chain.T = T;
+        s->chain.pick = -1;
+        s->chain.mode = -1;
+        s->chain.steps = 0;
+        s->chain.best[0] = s->chain.best[1] = INFINITY;
+    }
+    if (s->chain.pick < 0 && s->chain.mode >= 0) {
+        const double dt = now - s->chain.t;
+        if (dt < s->chain.best[s->chain.mode])
+            s->chain.best[s->chain.mode] = dt;
+        if (++s->chain.steps == 2 * CHAIN_TRIALS)
+            s->chain.pick = s->chain.best[1] < s->chain.best[0];
+    }
+    s->chain.mode = s->chain.pick >= 0 ? s->chain.pick : s->chain.steps % 2 == 0;
+    s->chain.t = now;
+    return s->chain.mode;
+}
+
+/* Whether the chain takes sys for `stages` stages; fz gets its forces.
+ * ask: the solver asks before a step (the timed choice advances); else the
+ * step itself, which follows the answer given. */
+static bool chain_takes(psys_system *sys, int stages, fused *fz, bool ask)
 {
     if (stages < 2 || stages > CHAIN_MAX_STAGES || sys->nctrl || !eligible(sys, fz))
         return false;
@@ -777,13 +826,30 @@ static bool chain_takes(psys_system *sys, int stages, fused *fz)
     if (env && env[0] == '1')
         return true;
     /* the plan's reach (an allocation failure: no, and the stage path reports it) */
-    return psys__springs_prepare_rings(s, sys->n, 1) == PSYS_OK && chain_reach(s) <= CHAIN_AUTO_REACH;
+    if (psys__springs_prepare_rings(s, sys->n, 1) != PSYS_OK)
+        return false;
+    if (chain_reach(s) <= CHAIN_AUTO_REACH)
+        return true;
+    return ask ? chain_timed(sys, s) == 1 : s->chain.mode == 1;
 }
 
 bool psys__fused_chain_eligible(psys_system *sys, int stages)
 {
     fused fz;
-    return chain_takes(sys, stages, &fz);
+    return chain_takes(sys, stages, &fz, true);
+}
+
+int psys__fused_chain_pick(const psys_system *sys)
+{
+    const springs *s = sys->springs;
+    return s && s->chain.keyed ? s->chain.pick : -1;
+}
+
+bool psys_system_timing_settled(const psys_system *sys)
+{
+    const springs *s = sys->springs;
+    /* timing started (a mode under way) and not yet decided */
+    return !s || !s->chain.keyed || s->chain.pick >= 0 || s->chain.mode < 0;
 }
 
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
@@ -791,7 +857,7 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
 {
     fused fz[CHAIN_MAX_STAGES];
     *used = false;
-    if (!chain_takes(sys, stages, &fz[0]))
+    if (!chain_takes(sys, stages, &fz[0], false))
         return PSYS_OK;
     springs *s = sys->springs;
     const size_t n = sys->n, nd = n * (size_t)sys->dim;

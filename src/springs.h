@@ -74,6 +74,20 @@ typedef struct springs {
     double *ring;
     size_t ring_w;
     int ring_t;
+    /* The chain sweep or stage by stage, where the springs reach too far
+     * for the chain to be the default: chosen by timing steps of each
+     * (spring_fused.c, chain_timed). Zero (calloc): nothing timed yet. */
+    struct {
+        bool keyed;          /* plan, n, T below hold */
+        unsigned plan;       /* plan_version the timing is for */
+        size_t n;            /* particle count */
+        int T;               /* threads */
+        int pick;            /* -1 still timing, 0 stage by stage, 1 the chain */
+        int mode;            /* the mode of the step under way (0, 1), -1 none */
+        int steps;           /* steps timed */
+        double t;            /* clock when that step was asked for (s) */
+        double best[2];      /* shortest step of each mode (s) */
+    } chain;
 } springs;
 
 /* First particle of thread t's share of np particles among T. */

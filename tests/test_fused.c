@@ -10,6 +10,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 static uint64_t lcg = 12345;
 static double rnd(void) /* in [0, 1), the same sequence on every machine */
@@ -448,9 +449,10 @@ static void chain_same_bits(void)
             unsetenv("PSYS_CHAIN");
             free(want);
         }
-    /* By default only springs reaching at most 600 particles: the rope
-     * (offset 3 + 512), not a sheet of 300 columns (600 + 512);
-     * PSYS_CHAIN=1 takes that too. */
+    /* By default the chain for springs reaching at most 600 particles: the
+     * rope (offset 3 + 512); a sheet of 300 columns (600 + 512) gets it by
+     * timing (chain_timed): the first step asked about is the chain's, the
+     * second stage by stage's; PSYS_CHAIN=1 always takes it. */
     psys_system *s = rope(3000);
     psys_ode o = psys_system_ode(s);
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
@@ -459,6 +461,7 @@ static void chain_same_bits(void)
     add_particles(s, 3, 300 * 4, 300);
     sheet_springs(s, 0, 300, 4);
     o = psys_system_ode(s);
+    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_ERR_UNSUPPORTED);
     setenv("PSYS_CHAIN", "1", 1);
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
@@ -474,6 +477,83 @@ static void chain_same_bits(void)
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_ERR_UNSUPPORTED);
     unsetenv("PSYS_CHAIN");
     psys_system_destroy(s);
+}
+
+/* Springs reaching beyond 600 particles: the first six rk4 steps time the
+ * chain (odd steps) against stage by stage (even ones), and the one whose
+ * fastest step was faster takes every later step; psys_system_timing_settled
+ * turns true with the choice and false again when the particle count
+ * changes. The same bits as stage by stage throughout. PSYS_CHAIN=0 or 1
+ * times nothing. A step's time runs to the next step, so 50 ms spent by
+ * the caller after every chain step (or every other) must make the other
+ * mode win. */
+static void chain_timed(void)
+{
+    double *want = NULL;
+    size_t size = 0;
+    /* 0: PSYS_CHAIN=0; 1: timed; 2: PSYS_CHAIN=1; 3, 4: timed, the caller
+     * slow after the chain's steps (3) or the stages' (4) */
+    for (int run = 0; run < 5; run++) {
+        const bool timed = run == 1 || run >= 3;
+        if (!timed)
+            setenv("PSYS_CHAIN", run == 0 ? "0" : "1", 1);
+        psys_system *s = rope(3000);
+        spring(s, 0, 700); /* reach 700 + 512 */
+        psys_ode o = psys_system_ode(s);
+        system_chain = o.derivative_chain;
+        o.derivative_chain = counting_chain;
+        chain_calls = 0;
+        psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+        CHECK(sv != NULL);
+        CHECK(psys__fused_chain_pick(s) == -1);
+        long calls_before_choice = 0;
+        for (int step = 1; step <= 12; step++) {
+            double taken;
+            CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+            /* asked at step 7 after six timed steps, the choice is made */
+            CHECK(psys_system_timing_settled(s) == (!timed || step >= 7));
+            CHECK((psys__fused_chain_pick(s) >= 0) == (timed && step >= 7));
+            if (step == 6)
+                calls_before_choice = chain_calls;
+            if (run >= 3 && step <= 6 && step % 2 == (run == 3 ? 1 : 0)) {
+                const struct timespec pause = {0, 50000000};
+                nanosleep(&pause, NULL);
+            }
+        }
+        if (timed) {
+            const int pick = psys__fused_chain_pick(s);
+            CHECK(calls_before_choice == 3);
+            CHECK(chain_calls == 3 + 6 * pick);
+            if (run >= 3)
+                CHECK(pick == (run == 3 ? 0 : 1));
+        } else {
+            CHECK(chain_calls == (run == 2 ? 12 : 0));
+        }
+        size = o.size;
+        double *got = malloc(size * sizeof(double));
+        o.get_state(o.ctx, got);
+        if (run == 0) {
+            want = got;
+        } else {
+            CHECK(memcmp(got, want, size * sizeof(double)) == 0);
+            free(got);
+        }
+        if (run == 1) { /* a new particle: timed again */
+            const double p[3] = {0, 0, 0}, v[3] = {0, 0, 0};
+            CHECK(psys_system_add_particle(s, p, v, 1.0, NULL, NULL) == PSYS_OK);
+            psys_solver_destroy(sv);
+            o = psys_system_ode(s);
+            sv = psys_solver_create("rk4", &o, NULL);
+            double taken;
+            CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+            CHECK(!psys_system_timing_settled(s));
+            CHECK(psys__fused_chain_pick(s) == -1);
+        }
+        unsetenv("PSYS_CHAIN");
+        psys_solver_destroy(sv);
+        psys_system_destroy(s);
+    }
+    free(want);
 }
 
 /* The state of s (positions, then velocities), copied. */
@@ -747,6 +827,7 @@ static const check_case cases[] = {
     {"runs_same_bits", runs_same_bits},
     {"chooses_path", chooses_path},
     {"chain_same_bits", chain_same_bits},
+    {"chain_timed", chain_timed},
     {"shuffled_same_physics", shuffled_same_physics},
     {"state_order_same_bits", state_order_same_bits},
     {"state_order_cache", state_order_cache},

@@ -1,5 +1,5 @@
 # The fused derivative (src/spring_fused.c): the same bits as the generic one.
-psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path chain_same_bits shuffled_same_physics
+psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path chain_same_bits chain_timed shuffled_same_physics
   state_order_same_bits
   state_order_cache)
 # The determinism checks again with the fused derivative forced (it then

@@ -756,6 +756,12 @@ psys_status psys_system_set_threads(psys_system *sys, int threads);
 int psys_system_threads(const psys_system *sys);
 /** Threads large evaluations use (1 in a build without OpenMP). */
 int psys_system_effective_threads(const psys_system *sys);
+/** Whether the steps timed to choose between equivalent code paths are
+ *  over: for rk4 and midpoint on springs that reach far, the first six
+ *  steps after the springs, particle count or threads change time every
+ *  stage in one sweep against stage by stage (docs/api.md). The results are
+ *  the same bits either way; benchmarks step until this holds. */
+bool psys_system_timing_settled(const psys_system *sys);
 
 /* ------------------------------------------------------------------ */
 /* Scenes (JSON, DESIGN §2)                                            */
