@@ -70,16 +70,17 @@ static void spring_force_eq1(void)
     psys_system_destroy(sys);
 }
 
-/* Chains whose springs share ks, or kd, or both, or all but one spring:
- * the spring loops read shared parameters once per run of springs, so a
- * run taken as shared when it is not would give some springs another's
- * ks or kd. Every particle's force, by both derivative paths (the force
+/* Chains whose springs share ks, or kd, or both, or all but one spring,
+ * or ks, kd and the rest length but for one spring's rest length or a
+ * muscle: the spring loops read shared parameters once per run of springs,
+ * so a run taken as shared when it is not would give some springs
+ * another's ks, kd or rest length. Every particle's force, by both derivative paths (the force
  * object, psys_system_compute_forces, and the ODE derivative, which takes
  * the fused one for springs with gravity or drag), against eq. 1 spring
  * by spring. */
 static void spring_runs_shared_parameters(void)
 {
-    enum { CHAINS = 5, LEN = 40, N = CHAINS * LEN };
+    enum { CHAINS = 8, LEN = 40, N = CHAINS * LEN };
     for (int dim = 2; dim <= 3; dim++) { /* the run loops have a copy for each */
         psys_system *sys = make_system(dim);
         uint64_t seed = 99;
@@ -106,7 +107,16 @@ static void spring_runs_shared_parameters(void)
                     ks[ns] = 41; /* chain 3: all shared but one, mid-run */
                 if (c == 4 && j == 25)
                     kd[ns] = 0.3; /* chain 4: neither shared */
+                if (c >= 5) { /* chains 5-7: ks, kd and the rest length shared, */
+                    ks[ns] = 40;
+                    kd[ns] = 0.3;
+                    rest[ns] = c == 5 && j == 17 ? 0.095 : 0.09; /* but one rest length mid-run (5) */
+                }
                 CHECK(psys_system_add_spring(sys, (size_t)a[ns], (size_t)b[ns], ks[ns], kd[ns], rest[ns]) == PSYS_OK);
+                if (c == 6 && j == 17) { /* or a muscle mid-run (6); at t = 0 its rest is r(1 + 0.2 sin 1) */
+                    CHECK(psys_system_set_spring_muscle(sys, (size_t)ns, 0.2, 3.0, 1.0) == PSYS_OK);
+                    rest[ns] *= 1 + 0.2 * sin(1.0);
+                }
             }
         const double g[3] = {0, -1, 0};
         CHECK(psys_system_add_gravity(sys, g) == PSYS_OK);
