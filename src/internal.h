@@ -47,7 +47,7 @@ void psys__ok(psys_error *err);
 
 /** Overflow-checked n*size allocation (NULL on overflow or failure). */
 void *psys__calloc(size_t n, size_t size);
-/* psys__calloc on a 64-byte boundary (whole cache lines; free() releases it). */
+/** psys__calloc on a 64-byte boundary (whole cache lines; free() releases it). */
 void *psys__calloc_lines(size_t n, size_t size);
 /** Overflow-checked realloc of n*size bytes. */
 void *psys__realloc(void *p, size_t n, size_t size);

@@ -777,10 +777,15 @@ static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, s
  * and the caller's work between steps. The same bits either way. */
 #define CHAIN_TRIALS 3
 
+/* Seconds on a clock that does not jump where there is one (POSIX). */
 static double chain_clock(void)
 {
     struct timespec ts;
+#ifdef CLOCK_MONOTONIC
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+#else
     timespec_get(&ts, TIME_UTC);
+#endif
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
@@ -802,7 +807,7 @@ static int chain_timed(psys_system *sys, springs *s)
     }
     if (s->chain.pick < 0 && s->chain.mode >= 0) {
         const double dt = now - s->chain.t;
-        if (dt < s->chain.best[s->chain.mode])
+        if (dt >= 0 && dt < s->chain.best[s->chain.mode])
             s->chain.best[s->chain.mode] = dt;
         if (++s->chain.steps == 2 * CHAIN_TRIALS)
             s->chain.pick = s->chain.best[1] < s->chain.best[0];
