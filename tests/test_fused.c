@@ -400,6 +400,16 @@ static psys_status counting_chain(void *ctx, double t, const double *y0, int sta
     return system_chain(ctx, t, y0, stages, c, pass);
 }
 
+/* A copy of o's state (*size components). */
+static double *ode_state(const psys_ode *o, size_t *size)
+{
+    *size = o->size;
+    double *y = malloc(*size * sizeof(double));
+    CHECK(y != NULL);
+    o->get_state(o->ctx, y);
+    return y;
+}
+
 /* rk4 and midpoint steps with every stage swept together (derivative_chain)
  * against stage by stage (PSYS_CHAIN=0): the same bits, for 1 to 4
  * threads (the rope's ranges at 3 and 4 threads, trapezoids and the
@@ -429,9 +439,7 @@ static void chain_same_bits(void)
                 }
                 /* muscles (CHAIN_GAPS_2D) depend on the stage time: never chained */
                 CHECK(chain_calls == (run == 0 || kind == CHAIN_GAPS_2D ? 0 : 6));
-                size = o.size;
-                double *got = malloc(size * sizeof(double));
-                o.get_state(o.ctx, got);
+                double *got = ode_state(&o, &size);
                 if (run == 0) {
                     want = got;
                 } else {
@@ -529,9 +537,7 @@ static void chain_timed(void)
         } else {
             CHECK(chain_calls == (run == 2 ? 12 : 0));
         }
-        size = o.size;
-        double *got = malloc(size * sizeof(double));
-        o.get_state(o.ctx, got);
+        double *got = ode_state(&o, &size);
         if (run == 0) {
             want = got;
         } else {
