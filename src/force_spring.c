@@ -270,9 +270,8 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
             run_short(X, V, Fs, cap, SIZE_MAX, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, a0, a1, b0, b1, d);
             continue;
         }
-        /* from the first spring whose first end starts a cache line on, no
-         * vector of first ends straddles two lines (the same operations) */
-        const size_t to_line = (8 - (lo & 7)) & 7, h = to_line < len ? to_line : len;
+        /* the same operations, split where the first ends reach a cache line */
+        const size_t h = psys__springs_to_line(lo, len);
         const bool uni = s->run_uni[r];
         if (h)
             run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, h, F, uni, d, false);

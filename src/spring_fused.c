@@ -44,13 +44,6 @@
 #define FUSED_INLINE inline
 #endif
 
-/* p, which the caller knows to lie on a 64-byte boundary. */
-#if defined(__GNUC__)
-#define FUSED_LINE(p) __builtin_assume_aligned((p), 64)
-#else
-#define FUSED_LINE(p) (p)
-#endif
-
 /* The loops of run_pair_d carry no dependence between iterations (their
  * rows are distinct, and a run's two ranges are distinct where both are
  * written); GCC honours restrict only on parameters, and these pointers are
@@ -373,7 +366,7 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     const ptrdiff_t o = (ptrdiff_t)b - (ptrdiff_t)a;
     /* line: slot a starts a cache line in every row (S is a multiple of 8,
      * and saying so lets the compiler know it of each row) */
-    double *const r0 = line ? FUSED_LINE(rb + a) : rb + a;
+    double *const r0 = line ? SPRING_LINE(rb + a) : rb + a;
     S = line ? S & ~(size_t)7 : S;
     const double *x0 = r0, *x1 = r0 + S, *v0 = r0 + (size_t)d * S, *v1 = r0 + (size_t)(d + 1) * S;
     double *f0 = r0 + (size_t)(2 * d) * S, *f1 = r0 + (size_t)(2 * d + 1) * S;
@@ -434,9 +427,7 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
 static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd,
                                   const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d)
 {
-    size_t h = (8 - (a & 7)) & 7;
-    if (h > len)
-        h = len;
+    const size_t h = psys__springs_to_line(a, len);
     if (h) {
         if (uni)
             run_pair_d(rb, S, a, b, ks, kd, rest, h, Fk, apart, true, d, false);

@@ -123,6 +123,16 @@ void psys__springs_partition(springs *s, size_t np, int T);
 #define SPRING_LINE(p) (p)
 #endif
 
+/* Of len springs whose first ends start at slot a, those before the first
+ * whose first end starts a cache line (rows on lines, 8 doubles to a line):
+ * the loops run them apart, so that a vector of the rest's first ends never
+ * straddles two lines. */
+static inline size_t psys__springs_to_line(size_t a, size_t len)
+{
+    const size_t h = (8 - (a & 7)) & 7;
+    return h < len ? h : len;
+}
+
 /* Forces of run springs j < len into F (component-major: F[c·SPRING_BLOCK + j]):
  *   l = x_lo - x_hi, F = [ks(|l| - r) + kd (l̇·l)/|l|] l/|l|  (f_lo -= F, f_hi += F).
  * X, V: the SoA position and velocity components (stride cap), lo and hi
