@@ -490,8 +490,8 @@ static void chain_same_bits(void)
 /* Springs reaching beyond 600 particles: the first six rk4 steps time the
  * chain (odd steps) against stage by stage (even ones), and the one whose
  * fastest step was faster takes every later step; psys_system_timing_settled
- * turns true with the choice and false again when the particle count
- * changes. The same bits as stage by stage throughout. PSYS_CHAIN=0 or 1
+ * turns true with the choice and false again when the particle count,
+ * the springs or the thread count change. The same bits as stage by stage throughout. PSYS_CHAIN=0 or 1
  * times nothing. A step's time runs to the next step, so 50 ms spent by
  * the caller after every chain step (or every other) must make the other
  * mode win. */
@@ -544,16 +544,29 @@ static void chain_timed(void)
             CHECK(memcmp(got, want, size * sizeof(double)) == 0);
             free(got);
         }
-        if (run == 1) { /* a new particle: timed again */
-            const double p[3] = {0, 0, 0}, v[3] = {0, 0, 0};
-            CHECK(psys_system_add_particle(s, p, v, 1.0, NULL, NULL) == PSYS_OK);
-            psys_solver_destroy(sv);
-            o = psys_system_ode(s);
-            sv = psys_solver_create("rk4", &o, NULL);
-            double taken;
-            CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
-            CHECK(!psys_system_timing_settled(s));
-            CHECK(psys__fused_chain_pick(s) == -1);
+        if (run == 1) { /* a new particle, a new spring, another thread count: timed again */
+            for (int change = 0; change < 3; change++) {
+                for (int step = 0; step < 7; step++) { /* settled again first */
+                    double taken;
+                    CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+                }
+                CHECK(psys_system_timing_settled(s));
+                if (change == 0) {
+                    const double p[3] = {0, 0, 0}, v[3] = {0, 0, 0};
+                    CHECK(psys_system_add_particle(s, p, v, 1.0, NULL, NULL) == PSYS_OK);
+                } else if (change == 1) {
+                    spring(s, 1, 702);
+                } else {
+                    CHECK(psys_system_set_threads(s, psys_system_effective_threads(s) == 1 ? 2 : 1) == PSYS_OK);
+                }
+                psys_solver_destroy(sv);
+                o = psys_system_ode(s);
+                sv = psys_solver_create("rk4", &o, NULL);
+                double taken;
+                CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+                CHECK(!psys_system_timing_settled(s));
+                CHECK(psys__fused_chain_pick(s) == -1);
+            }
         }
         unsetenv("PSYS_CHAIN");
         psys_solver_destroy(sv);
