@@ -30,6 +30,12 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define FUSED_AVX512 1 /* run_pair_512, run_near_512 */
+#else
+#define FUSED_AVX512 0
+#endif
 
 #define FUSED_MAX_ROWS 8 /* per-particle forces before and after the springs */
 /* Overlapping runs with an offset of at least this many springs go in
@@ -72,6 +78,8 @@ typedef struct fused {
     size_t nd;
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
     bool forced; /* PSYS_FUSED=1: small sets threaded too (read once per evaluation) */
+    bool k512;   /* the AVX-512 run loops (run_pair_512, run_near_512); PSYS_SPRING_PLAIN=1: the
+                    compiler's loops (tests, benchmarks) */
     int npre, npost;
 } fused;
 
@@ -104,6 +112,12 @@ static bool eligible(const psys_system *s, fused *fz)
     if (force && force[0] == '0')
         return false;
     fz->forced = force && force[0] == '1';
+#if FUSED_AVX512
+    const char *plain = getenv("PSYS_SPRING_PLAIN");
+    fz->k512 = __builtin_cpu_supports("avx512f") && !(plain && plain[0] == '1');
+#else
+    fz->k512 = false;
+#endif
     bool after = false;
     fz->npre = fz->npost = 0;
     for (size_t i = 0; i < s->nforces; i++) {
@@ -419,14 +433,220 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     }
 }
 
+#if FUSED_AVX512
+/* The address n doubles after p (n < 0: before), which may lie outside p's
+ * array: only for lanes a mask keeps out of every access. */
+static inline uintptr_t lanes_at(const double *p, ptrdiff_t n)
+{
+    return (uintptr_t)p + (uintptr_t)n * sizeof(double);
+}
+
+/* The forces g of eight springs of a run from the slot ra of their first
+ * ends (on a cache line), their second ends o slots on, their parameters at
+ * pk, pd, pr: the operations of run_pair_d, lane by lane. Lanes outside m
+ * load nothing (their g is 0). full: m is all lanes (plain loads). */
+__attribute__((target("avx512f"), always_inline)) static inline void
+spring_g8(const double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, const double *pr, __mmask8 m,
+          const bool full, const bool uni, __m512d ks0, __m512d kd0, const int d, __m512d g[3])
+{
+#define LD_A(p) (full ? _mm512_load_pd(p) : _mm512_maskz_load_pd(m, (p)))
+#define LD_U(p) (full ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, (p)))
+    const double *rb_ = (const double *)lanes_at(ra, o);
+    __m512d l[3], dv[3];
+    for (int c = 0; c < d; c++) {
+        l[c] = _mm512_sub_pd(LD_A(ra + (size_t)c * S), LD_U(rb_ + (size_t)c * S));
+        dv[c] = _mm512_sub_pd(LD_A(ra + (size_t)(d + c) * S), LD_U(rb_ + (size_t)(d + c) * S));
+    }
+    __m512d len2 = _mm512_add_pd(_mm512_mul_pd(l[0], l[0]), _mm512_mul_pd(l[1], l[1]));
+    __m512d dot = _mm512_add_pd(_mm512_mul_pd(dv[0], l[0]), _mm512_mul_pd(dv[1], l[1]));
+    if (d == 3) {
+        len2 = _mm512_add_pd(len2, _mm512_mul_pd(l[2], l[2]));
+        dot = _mm512_add_pd(dot, _mm512_mul_pd(dv[2], l[2]));
+    }
+    const __m512d kks = uni ? ks0 : LD_U(pk), kkd = uni ? kd0 : LD_U(pd);
+    const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(_mm512_set1_pd(1.0), L);
+    __m512d mag = _mm512_mul_pd(
+        _mm512_add_pd(_mm512_mul_pd(kks, _mm512_sub_pd(L, LD_U(pr))), _mm512_mul_pd(_mm512_mul_pd(kkd, dot), inv)),
+        inv);
+    /* len2 == 0: +0; a NaN len2 keeps its NaN, as in psys__spring_mag */
+    mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, _mm512_setzero_pd(), _CMP_NEQ_UQ), mag);
+    for (int c = 0; c < d; c++)
+        g[c] = _mm512_mul_pd(mag, l[c]);
+#undef LD_A
+#undef LD_U
+}
+
+/* Eight springs of run_pair_512: f_a -= g, and f_b += g (apart) or g into
+ * the scratch at pf. */
+__attribute__((target("avx512f"), always_inline)) static inline void
+spring8(double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, const double *pr, double *pf,
+        __mmask8 m, const bool full, const bool uni, const bool apart, __m512d ks0, __m512d kd0, const int d)
+{
+    __m512d g[3];
+    spring_g8(ra, o, S, pk, pd, pr, m, full, uni, ks0, kd0, d, g);
+    double *rb_ = (double *)lanes_at(ra, o);
+    for (int c = 0; c < d; c++) {
+        double *fa = ra + (size_t)(2 * d + c) * S;
+        if (full) {
+            _mm512_store_pd(fa, _mm512_sub_pd(_mm512_load_pd(fa), g[c]));
+        } else {
+            _mm512_mask_store_pd(fa, m, _mm512_sub_pd(_mm512_maskz_load_pd(m, fa), g[c]));
+        }
+        if (apart) {
+            double *fb = rb_ + (size_t)(2 * d + c) * S;
+            if (full)
+                _mm512_storeu_pd(fb, _mm512_add_pd(_mm512_loadu_pd(fb), g[c]));
+            else
+                _mm512_mask_storeu_pd(fb, m, _mm512_add_pd(_mm512_maskz_loadu_pd(m, fb), g[c]));
+        } else if (full) {
+            _mm512_storeu_pd(pf + (size_t)c * SPRING_BLOCK, g[c]);
+        } else {
+            _mm512_mask_storeu_pd(pf + (size_t)c * SPRING_BLOCK, m, g[c]);
+        }
+    }
+}
+
+/* A run of offset o < 8 (a row's near neighbours) on AVX-512, both ends in
+ * one pass: in the vector of particles p..p+7 (from the line holding the
+ * first end a), p − g_p for the first ends, then + g_{p−o} for the second
+ * ends, g_{p−o} shifted in from this vector's springs and the last vector's.
+ * Each particle sees the plan's order (its first end before its second end;
+ * the scratch and second loop of the plain path do the same), so the same
+ * bits, with one load and store of each force instead of three of each. */
+__attribute__((target("avx512f"), always_inline)) static inline void
+run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const double *kd, const double *rest,
+               size_t len, const bool uni, const int d)
+{
+    const size_t h0 = a & 7, endA = h0 + len, endB = endA + o;
+    const ptrdiff_t back = -(ptrdiff_t)h0;
+    double *r = (double *)lanes_at(rb + a, back); /* on a cache line */
+    r = __builtin_assume_aligned(r, 64);
+    const double *pk = (const double *)lanes_at(ks, back), *pd = (const double *)lanes_at(kd, back);
+    const double *pr = (const double *)lanes_at(rest, back);
+    const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
+    /* lane l takes lane l − o of this vector's forces, or lane 8 + l − o
+     * of the last one's */
+    const __m512i shift = _mm512_add_epi64(_mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0), _mm512_set1_epi64(8 - (long long)o));
+    S &= ~(size_t)7;
+    __m512d gp[3] = {_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd()};
+    for (size_t i = 0; i < endB; i += 8) {
+        /* lanes [lo, hi) of this vector, as a mask */
+#define LANES(lo, hi) \
+    ((__mmask8)(((lo) >= i + 8 || (hi) <= i) ? 0u : ((0xffu << ((lo) > i ? (lo) - i : 0)) & (0xffu >> ((hi) >= i + 8 ? 0 : i + 8 - (hi))))))
+        const __mmask8 mA = LANES(h0, endA), mB = LANES(h0 + o, endB), mf = mA | mB;
+#undef LANES
+        __m512d g[3];
+        double *ra = r + i;
+        if (mA == 0xff) {
+            spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, true, uni, ks0, kd0, d, g);
+        } else {
+            spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, false, uni, ks0, kd0, d, g);
+        }
+        for (int c = 0; c < d; c++) {
+            double *fa = ra + (size_t)(2 * d + c) * S;
+            const __m512d sh = _mm512_permutex2var_pd(gp[c], shift, g[c]);
+            if (mA == 0xff && mB == 0xff) {
+                _mm512_store_pd(fa, _mm512_add_pd(_mm512_sub_pd(_mm512_load_pd(fa), g[c]), sh));
+            } else {
+                __m512d f = _mm512_maskz_load_pd(mf, fa);
+                f = _mm512_mask_sub_pd(f, mA, f, g[c]);
+                f = _mm512_mask_add_pd(f, mB, f, sh);
+                _mm512_mask_store_pd(fa, mf, f);
+            }
+            gp[c] = g[c];
+        }
+    }
+}
+
+__attribute__((target("avx512f"))) static void run_near_512(double *rb, size_t S, size_t a, size_t o,
+                                                            const double *ks, const double *kd, const double *rest,
+                                                            size_t len, bool uni, int d)
+{
+    if (d == 3) {
+        if (uni)
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, true, 3);
+        else
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, false, 3);
+    } else {
+        if (uni)
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, true, 2);
+        else
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, false, 2);
+    }
+}
+
+/* run_pair on AVX-512: eight springs to a vector from the line holding the
+ * first end a, the first and last vectors masked, so a run has no scalar
+ * head or tail (they took about a tenth of cloth-100's time). The
+ * operations of run_pair_d on each spring, in the same order: the same
+ * bits. Lanes outside the run load nothing and store nothing. */
+__attribute__((target("avx512f"), always_inline)) static inline void
+run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd, const double *rest,
+               size_t len, double *Fk, const bool uni, const bool apart, const int d)
+{
+    const size_t h0 = a & 7, end = h0 + len;
+    const ptrdiff_t back = -(ptrdiff_t)h0, o = (ptrdiff_t)b - (ptrdiff_t)a;
+    double *r = (double *)lanes_at(rb + a, back); /* on a cache line */
+    r = __builtin_assume_aligned(r, 64);
+    const double *pk = (const double *)lanes_at(ks, back), *pd = (const double *)lanes_at(kd, back);
+    const double *pr = (const double *)lanes_at(rest, back);
+    double *pf = (double *)lanes_at(Fk, back);
+    const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
+    S &= ~(size_t)7;
+    size_t i = 0;
+    if (h0 || end < 8) {
+        __mmask8 m = (__mmask8)(0xffu << h0);
+        if (end < 8)
+            m &= (__mmask8)((1u << end) - 1);
+        spring8(r, o, S, pk, pd, pr, pf, m, false, uni, apart, ks0, kd0, d);
+        i = 8;
+    }
+    for (; i + 8 <= end; i += 8)
+        spring8(r + i, o, S, pk + i, pd + i, pr + i, pf + i, 0xff, true, uni, apart, ks0, kd0, d);
+    if (i < end)
+        spring8(r + i, o, S, pk + i, pd + i, pr + i, pf + i, (__mmask8)((1u << (end - i)) - 1), false, uni, apart,
+                ks0, kd0, d);
+}
+
+__attribute__((target("avx512f"))) static void run_pair_512(double *rb, size_t S, size_t a, size_t b,
+                                                            const double *ks, const double *kd, const double *rest,
+                                                            size_t len, double *Fk, bool uni, bool apart, int d)
+{
+    if (d == 3) {
+        if (uni)
+            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, 3)
+                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, 3);
+        else
+            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, 3)
+                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, 3);
+    } else {
+        if (uni)
+            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, 2)
+                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, 2);
+        else
+            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, 2)
+                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, 2);
+    }
+}
+#endif
+
 /* run_pair_d with ks and kd read once where the run's springs share them,
  * the springs before the first whose first end starts a cache line apart:
  * from there on, a vector of first ends never straddles two lines (about
  * 0.9 × the time of cloth-100, bench/README.md). The same operations on
  * each spring. */
 static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd,
-                                  const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d)
+                                  const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d,
+                                  const bool k512)
 {
+#if FUSED_AVX512
+    if (k512) {
+        run_pair_512(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, d);
+        return;
+    }
+#else
+    (void)k512;
+#endif
     const size_t h = psys__springs_to_line(a, len);
     if (h) {
         if (uni)
@@ -446,7 +666,7 @@ static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, cons
  * (e - c ≤ off, so no particle is both a first and a second end here), cut
  * where either end's range wraps around the ring. */
 static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo, size_t hi, size_t k, size_t c,
-                                         size_t e, double *F, bool uni, const int d)
+                                         size_t e, double *F, bool uni, const int d, const bool k512)
 {
     const springs *s = fz->s;
     const size_t W = fz->W, mask = fz->mask;
@@ -457,7 +677,7 @@ static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo,
             m = W - pa;
         if (W - pb < m)
             m = W - pb;
-        run_pair(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, uni, true, d);
+        run_pair(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, uni, true, d, k512);
         c += m;
     }
 }
@@ -490,7 +710,8 @@ static void sweep_start(const springs *s, sweep *w, size_t r0, size_t r1, size_t
  * before upto (no later run touches a particle before it). The window is
  * the same and each particle sees the same operations wherever a sweep
  * stops: the bits of one sweep from P to Q. */
-static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_t upto, const int d)
+static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_t upto, const int d,
+                                    const bool k512)
 {
     const springs *s = fz->s;
     const size_t W = fz->W, mask = fz->mask, S = fz->S, P = w->P, Q = w->Q;
@@ -535,7 +756,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         const bool uni = s->run_uni[r];
         if (off >= len) {
             /* the two ranges are apart: both ends in one loop */
-            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d);
+            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d, k512);
             continue;
         }
         if (off >= FUSED_CHUNK_MIN) {
@@ -547,7 +768,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
              * then all second ends). */
             for (size_t e = len; e > 0;) {
                 const size_t c = e > off ? e - off : 0;
-                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d);
+                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d, k512);
                 e = c;
             }
             continue;
@@ -556,6 +777,12 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
          * loop, the forces kept for a second loop over the second ends. The
          * run's ends in the ring, cut where either wraps around. */
         const size_t ia = lo & mask, ib = hi & mask;
+#if FUSED_AVX512
+        if (k512 && ib == ia + off && ib + len <= W) { /* neither range wraps around the ring */
+            run_near_512(rb, S, ia, off, s->pks + k, s->pkd + k, s->prest + k, len, uni, d);
+            continue;
+        }
+#endif
         const size_t ja = W - ia < len ? W - ia : len, jb = W - ib < len ? W - ib : len;
         const size_t cut[4] = {0, ja < jb ? ja : jb, ja < jb ? jb : ja, len};
         for (int p = 0; p < 3; p++)
@@ -563,7 +790,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 const size_t j0 = cut[p];
                 const size_t pa = (lo + j0) & mask, pb = (hi + j0) & mask, m = cut[p + 1] - j0;
                 run_pair(rb, S, pa, pb, s->pks + k + j0, s->pkd + k + j0, s->prest + k + j0, m, F + j0, uni, false,
-                         d);
+                         d, k512);
             }
         for (int c = 0; c < d; c++) {
             double *restrict Fr = rb + (size_t)(2 * d + c) * S;
@@ -584,12 +811,34 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
 }
 
 SPRING_CLONES
-static void fused_sweep(const fused *fz, int d, double *rb, sweep *w, size_t upto)
+static void fused_sweep_plain(const fused *fz, int d, double *rb, sweep *w, size_t upto)
 {
     if (d == 2)
-        sweep_to_d(fz, rb, w, upto, 2);
+        sweep_to_d(fz, rb, w, upto, 2, false);
     else
-        sweep_to_d(fz, rb, w, upto, 3);
+        sweep_to_d(fz, rb, w, upto, 3, false);
+}
+
+#if FUSED_AVX512
+__attribute__((target("avx512f"), flatten)) static void fused_sweep_512(const fused *fz, int d, double *rb, sweep *w,
+                                                                      size_t upto)
+{
+    if (d == 2)
+        sweep_to_d(fz, rb, w, upto, 2, true);
+    else
+        sweep_to_d(fz, rb, w, upto, 3, true);
+}
+#endif
+
+static void fused_sweep(const fused *fz, int d, double *rb, sweep *w, size_t upto)
+{
+#if FUSED_AVX512
+    if (fz->k512) {
+        fused_sweep_512(fz, d, rb, w, upto);
+        return;
+    }
+#endif
+    fused_sweep_plain(fz, d, rb, w, upto);
 }
 
 /* Particles [P, Q) through runs [r0, r1) in one sweep. */

@@ -53,7 +53,7 @@ static void sheet_springs(psys_system *s, size_t first, int nx, int ny)
         }
 }
 
-enum { SHEET, SHEET_FORCES_AFTER, CHAIN_GAPS_2D, RANDOM_FAR, BIG_SHEET, SHEET_SHUFFLED, NKINDS };
+enum { SHEET, SHEET_FORCES_AFTER, CHAIN_GAPS_2D, RANDOM_FAR, BIG_SHEET, SHEET_SHUFFLED, NEAR_RUNS, NEAR_RUNS_2D, NKINDS };
 
 /* The system a of build(SHEET) with particle i renumbered pi[i]: the same
  * particles, forces and springs (in the same order), so the same physics. */
@@ -97,10 +97,40 @@ static size_t *shuffled(size_t n)
     return pi;
 }
 
+/* Runs of offsets 1 to 9, of lengths 1 to 40 at every position within a
+ * cache line, half of them sharing ks and kd: the AVX-512 loops' masked
+ * first and last vectors, and the near offsets' shifted second ends
+ * (spring_fused.c, run_near_512_d). n = 3000 particles: the window (1,024
+ * slots) wraps around within some runs. Two springs of zero length. */
+static void near_runs(psys_system *s, int dim)
+{
+    const size_t n = 3000;
+    add_particles(s, dim, n, 60);
+    for (size_t i = 1000; i < 1400; i += 97) { /* a particle on its neighbour: no direction, no force */
+        const double *x = psys_system_positions(s) + (i + 1) * (size_t)dim;
+        double at[3] = {x[0], x[1], dim == 3 ? x[2] : 0}, v[3] = {0.1, 0.2, 0.3};
+        CHECK(psys_system_set_particle(s, i, at, v) == PSYS_OK);
+    }
+    for (size_t o = 1; o <= 9; o++)
+        for (int seg = 0; seg < 25; seg++) {
+            const size_t len = 1 + (size_t)(rnd() * 40), a = (size_t)(rnd() * (double)(n - len - o));
+            const bool shared = seg % 2 == 0;
+            const double ks = 50 + 100 * rnd(), kd = 0.5 * rnd();
+            for (size_t j = 0; j < len; j++) {
+                if (shared)
+                    CHECK(psys_system_add_spring(s, a + j, a + j + o, ks, kd, 0.09 + 0.02 * rnd()) == PSYS_OK);
+                else
+                    spring(s, a + j, a + j + o);
+            }
+        }
+    for (size_t i = 0; i + 1 < n; i++) /* a whole rope too: runs of a block's length */
+        spring(s, i + 1, i);
+}
+
 static psys_system *build(int kind)
 {
     const double g3[3] = {0.3, -9.81, 0.2};
-    int dim = kind == CHAIN_GAPS_2D ? 2 : 3;
+    int dim = kind == CHAIN_GAPS_2D || kind == NEAR_RUNS_2D ? 2 : 3;
     lcg = 12345 + (uint64_t)kind; /* the same system every time */
     psys_system *s = psys_system_create(dim, NULL);
     switch (kind) {
@@ -156,6 +186,18 @@ static psys_system *build(int kind)
             spring(s, 5, (5 + 47 * k) % psys_system_count(s));
         free(pi);
         psys_system_destroy(a);
+        break;
+    }
+    case NEAR_RUNS:
+        CHECK(psys_system_add_drag(s, 0.2) == PSYS_OK);
+        near_runs(s, 3);
+        CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+        break;
+    case NEAR_RUNS_2D: {
+        const double g2[2] = {0.1, -9.81};
+        CHECK(psys_system_add_gravity(s, g2) == PSYS_OK);
+        near_runs(s, 2);
+        CHECK(psys_system_set_fixed(s, 1500, true) == PSYS_OK);
         break;
     }
     case BIG_SHEET: /* over 20,000 springs: threads share the particles */

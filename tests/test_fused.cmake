@@ -27,3 +27,12 @@ foreach(case thread_counts thread_counts_parallel_paths round_trip_runs)
   add_test(NAME test_determinism.chain.${case} COMMAND test_determinism ${case})
   set_tests_properties(test_determinism.chain.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")
 endforeach()
+# And with the compiler's run loops instead of the AVX-512 ones where the
+# CPU has AVX-512 (PSYS_SPRING_PLAIN=1; elsewhere the same runs again).
+add_test(NAME cli.determinism.plain_spring
+  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
+set_tests_properties(cli.determinism.plain_spring PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_SPRING_PLAIN=1")
+foreach(case derivative_same_bits runs_same_bits chain_same_bits)
+  add_test(NAME test_fused.plain_spring.${case} COMMAND test_fused ${case})
+  set_tests_properties(test_fused.plain_spring.${case} PROPERTIES ENVIRONMENT "PSYS_SPRING_PLAIN=1")
+endforeach()
