@@ -243,6 +243,71 @@ void psys__springs_truncate(void *set, size_t n)
  * gather and scatter through it; runs shorter than SPRING_SHORT go through
  * run_short instead of the vector loops. */
 
+#if SPRING_AVX512
+bool psys__springs_avx512(void)
+{
+    const char *plain = getenv("PSYS_SPRING_PLAIN");
+    return __builtin_cpu_supports("avx512f") && !(plain && plain[0] == '1');
+}
+
+/* run_forces_d on AVX-512 (F at 0..len): eight springs to a vector from
+ * the line holding the first end lo, the first and last vectors masked
+ * instead of a scalar head and tail; the same bits. */
+__attribute__((target("avx512f"))) static void run_forces_512(const double *X, size_t cap, size_t lo, size_t hi,
+                                                              const double *ks, const double *kd,
+                                                              const double *rest, size_t len, double *F, bool uni,
+                                                              int d)
+{
+    const size_t h0 = lo & 7, end = h0 + len;
+    const ptrdiff_t back = -(ptrdiff_t)h0, o = (ptrdiff_t)hi - (ptrdiff_t)lo;
+    const double *r = __builtin_assume_aligned((const double *)psys__lanes_at(X + lo, back), 64);
+    const double *pk = (const double *)psys__lanes_at(ks, back), *pd = (const double *)psys__lanes_at(kd, back);
+    const double *pr = (const double *)psys__lanes_at(rest, back);
+    double *pf = (double *)psys__lanes_at(F, back);
+    const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
+    cap &= ~(size_t)7;
+    for (size_t i = 0; i < end; i += 8) {
+        __mmask8 m = (__mmask8)(0xffu << (i == 0 ? h0 : 0));
+        if (end - i < 8)
+            m &= (__mmask8)((1u << (end - i)) - 1);
+        __m512d g[3];
+        if (m == 0xff) {
+            if (d == 3)
+                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, true, uni, ks0, kd0, 3, g);
+            else
+                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, true, uni, ks0, kd0, 2, g);
+            for (int c = 0; c < d; c++)
+                _mm512_storeu_pd(pf + (size_t)c * SPRING_BLOCK + i, g[c]);
+        } else {
+            if (d == 3)
+                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, false, uni, ks0, kd0, 3, g);
+            else
+                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, false, uni, ks0, kd0, 2, g);
+            for (int c = 0; c < d; c++)
+                _mm512_mask_storeu_pd(pf + (size_t)c * SPRING_BLOCK + i, m, g[c]);
+        }
+    }
+}
+#endif
+
+/* run_forces_d for a whole run (F at 0..len), ks and kd read once where the
+ * run's springs share them, split where the first ends reach a cache line:
+ * the same operations on each spring. */
+#if defined(__GNUC__)
+__attribute__((always_inline)) /* into each clone of springs_runs below */
+#endif
+static inline void run_forces(const double *X, const double *V, size_t cap, size_t lo, size_t hi, const double *ks,
+                              const double *kd, const double *rest, size_t len, double *F, bool uni, const int d)
+{
+    const size_t h = psys__springs_to_line(lo, len);
+    if (h)
+        run_forces_d(X, V, cap, lo, hi, ks, kd, rest, h, F, uni, d, false);
+    if (len > h && uni)
+        run_forces_d(X, V, cap, lo + h, hi + h, ks + h, kd + h, rest + h, len - h, F + h, true, d, true);
+    else if (len > h)
+        run_forces_d(X, V, cap, lo + h, hi + h, ks + h, kd + h, rest + h, len - h, F + h, false, d, true);
+}
+
 /* Runs r0..r1-1 into the SoA forces Fs; with `owned`, only the ends in
  * particles [P, Q). Per particle and component the contributions arrive in
  * plan order: run by run, in a run the first end before the second. */
@@ -250,7 +315,7 @@ void psys__springs_truncate(void *set, size_t n)
 __attribute__((always_inline)) /* into each clone of springs_runs below */
 #endif
 static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t r0, size_t r1, size_t P, size_t Q,
-                                  const int d, const bool owned)
+                                  const int d, const bool owned, bool k512)
 {
     double F[3 * SPRING_BLOCK];
     const size_t cap = s->soa_cap;
@@ -270,17 +335,15 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
             run_short(X, V, Fs, cap, SIZE_MAX, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, a0, a1, b0, b1, d);
             continue;
         }
-        /* the same operations, split where the first ends reach a cache line */
-        const size_t h = psys__springs_to_line(lo, len);
         const bool uni = s->run_uni[r];
-        if (h)
-            run_forces_d(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, h, F, uni, d, false);
-        if (len > h && uni)
-            run_forces_d(X, V, cap, lo + h, hi + h, s->pks + k + h, s->pkd + k + h, s->prest + k + h, len - h, F + h,
-                         true, d, true);
-        else if (len > h)
-            run_forces_d(X, V, cap, lo + h, hi + h, s->pks + k + h, s->pkd + k + h, s->prest + k + h, len - h, F + h,
-                         false, d, true);
+#if SPRING_AVX512
+        if (k512)
+            run_forces_512(X, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, uni, d);
+        else
+#else
+        (void)k512;
+#endif
+            run_forces(X, V, cap, lo, hi, s->pks + k, s->pkd + k, s->prest + k, len, F, uni, d);
         for (int c = 0; c < d; c++) {
             double *restrict fa = Fs + c * cap + lo, *restrict fb = Fs + c * cap + hi;
             const double *restrict Fc = F + c * SPRING_BLOCK;
@@ -293,18 +356,19 @@ static inline void springs_runs_d(const springs *s, double *restrict Fs, size_t 
 }
 
 SPRING_CLONES
-static void springs_runs(const springs *s, int dim, double *Fs, size_t r0, size_t r1, size_t P, size_t Q, bool owned)
+static void springs_runs(const springs *s, int dim, double *Fs, size_t r0, size_t r1, size_t P, size_t Q, bool owned,
+                         bool k512)
 {
     if (dim == 2) {
         if (owned)
-            springs_runs_d(s, Fs, r0, r1, P, Q, 2, true);
+            springs_runs_d(s, Fs, r0, r1, P, Q, 2, true, k512);
         else
-            springs_runs_d(s, Fs, r0, r1, 0, 0, 2, false);
+            springs_runs_d(s, Fs, r0, r1, 0, 0, 2, false, k512);
     } else {
         if (owned)
-            springs_runs_d(s, Fs, r0, r1, P, Q, 3, true);
+            springs_runs_d(s, Fs, r0, r1, P, Q, 3, true, k512);
         else
-            springs_runs_d(s, Fs, r0, r1, 0, 0, 3, false);
+            springs_runs_d(s, Fs, r0, r1, 0, 0, 3, false, k512);
     }
 }
 
@@ -867,9 +931,10 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
             T = 1;
     }
     double *Fs = s->soa + (size_t)(2 * e->dim) * s->soa_cap;
+    const bool k512 = psys__springs_avx512();
     if (T <= 1) {
         soa_gather(s, e, f, 0, e->n);
-        springs_runs(s, e->dim, Fs, 0, s->nruns, 0, 0, false);
+        springs_runs(s, e->dim, Fs, 0, s->nruns, 0, 0, false, k512);
         soa_scatter(s, e->dim, f, 0, e->n);
         return;
     }
@@ -884,7 +949,7 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
 #pragma omp barrier
         for (int t = me; t < T; t += nth) {
             size_t P = psys__part_first(e->n, T, t), Q = psys__part_first(e->n, T, t + 1);
-            springs_runs(s, e->dim, Fs, s->rlo[t], s->rhi[t], P, Q, true);
+            springs_runs(s, e->dim, Fs, s->rlo[t], s->rhi[t], P, Q, true, k512);
             soa_scatter(s, e->dim, f, P, Q);
         }
     }

@@ -30,12 +30,7 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-#if defined(__GNUC__) && defined(__x86_64__)
-#include <immintrin.h>
-#define FUSED_AVX512 1 /* run_pair_512, run_near_512 */
-#else
-#define FUSED_AVX512 0
-#endif
+#define FUSED_AVX512 SPRING_AVX512 /* run_pair_512, run_near_512 */
 
 #define FUSED_MAX_ROWS 8 /* per-particle forces before and after the springs */
 /* Overlapping runs with an offset of at least this many springs go in
@@ -112,12 +107,7 @@ static bool eligible(const psys_system *s, fused *fz)
     if (force && force[0] == '0')
         return false;
     fz->forced = force && force[0] == '1';
-#if FUSED_AVX512
-    const char *plain = getenv("PSYS_SPRING_PLAIN");
-    fz->k512 = __builtin_cpu_supports("avx512f") && !(plain && plain[0] == '1');
-#else
-    fz->k512 = false;
-#endif
+    fz->k512 = psys__springs_avx512();
     bool after = false;
     fz->npre = fz->npost = 0;
     for (size_t i = 0; i < s->nforces; i++) {
@@ -434,48 +424,6 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
 }
 
 #if FUSED_AVX512
-/* The address n doubles after p (n < 0: before), which may lie outside p's
- * array: only for lanes a mask keeps out of every access. */
-static inline uintptr_t lanes_at(const double *p, ptrdiff_t n)
-{
-    return (uintptr_t)p + (uintptr_t)n * sizeof(double);
-}
-
-/* The forces g of eight springs of a run from the slot ra of their first
- * ends (on a cache line), their second ends o slots on, their parameters at
- * pk, pd, pr: the operations of run_pair_d, lane by lane. Lanes outside m
- * load nothing (their g is 0). full: m is all lanes (plain loads). */
-__attribute__((target("avx512f"), always_inline)) static inline void
-spring_g8(const double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, const double *pr, __mmask8 m,
-          const bool full, const bool uni, __m512d ks0, __m512d kd0, const int d, __m512d g[3])
-{
-#define LD_A(p) (full ? _mm512_load_pd(p) : _mm512_maskz_load_pd(m, (p)))
-#define LD_U(p) (full ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, (p)))
-    const double *rb_ = (const double *)lanes_at(ra, o);
-    __m512d l[3], dv[3];
-    for (int c = 0; c < d; c++) {
-        l[c] = _mm512_sub_pd(LD_A(ra + (size_t)c * S), LD_U(rb_ + (size_t)c * S));
-        dv[c] = _mm512_sub_pd(LD_A(ra + (size_t)(d + c) * S), LD_U(rb_ + (size_t)(d + c) * S));
-    }
-    __m512d len2 = _mm512_add_pd(_mm512_mul_pd(l[0], l[0]), _mm512_mul_pd(l[1], l[1]));
-    __m512d dot = _mm512_add_pd(_mm512_mul_pd(dv[0], l[0]), _mm512_mul_pd(dv[1], l[1]));
-    if (d == 3) {
-        len2 = _mm512_add_pd(len2, _mm512_mul_pd(l[2], l[2]));
-        dot = _mm512_add_pd(dot, _mm512_mul_pd(dv[2], l[2]));
-    }
-    const __m512d kks = uni ? ks0 : LD_U(pk), kkd = uni ? kd0 : LD_U(pd);
-    const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(_mm512_set1_pd(1.0), L);
-    __m512d mag = _mm512_mul_pd(
-        _mm512_add_pd(_mm512_mul_pd(kks, _mm512_sub_pd(L, LD_U(pr))), _mm512_mul_pd(_mm512_mul_pd(kkd, dot), inv)),
-        inv);
-    /* len2 == 0: +0; a NaN len2 keeps its NaN, as in psys__spring_mag */
-    mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, _mm512_setzero_pd(), _CMP_NEQ_UQ), mag);
-    for (int c = 0; c < d; c++)
-        g[c] = _mm512_mul_pd(mag, l[c]);
-#undef LD_A
-#undef LD_U
-}
-
 /* Eight springs of run_pair_512: f_a -= g, and f_b += g (apart) or g into
  * the scratch at pf. */
 __attribute__((target("avx512f"), always_inline)) static inline void
@@ -483,8 +431,8 @@ spring8(double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, c
         __mmask8 m, const bool full, const bool uni, const bool apart, __m512d ks0, __m512d kd0, const int d)
 {
     __m512d g[3];
-    spring_g8(ra, o, S, pk, pd, pr, m, full, uni, ks0, kd0, d, g);
-    double *rb_ = (double *)lanes_at(ra, o);
+    psys__spring_g8(ra, o, S, pk, pd, pr, m, full, uni, ks0, kd0, d, g);
+    double *rb_ = (double *)psys__lanes_at(ra, o);
     for (int c = 0; c < d; c++) {
         double *fa = ra + (size_t)(2 * d + c) * S;
         if (full) {
@@ -519,10 +467,10 @@ run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const
 {
     const size_t h0 = a & 7, endA = h0 + len, endB = endA + o;
     const ptrdiff_t back = -(ptrdiff_t)h0;
-    double *r = (double *)lanes_at(rb + a, back); /* on a cache line */
+    double *r = (double *)psys__lanes_at(rb + a, back); /* on a cache line */
     r = __builtin_assume_aligned(r, 64);
-    const double *pk = (const double *)lanes_at(ks, back), *pd = (const double *)lanes_at(kd, back);
-    const double *pr = (const double *)lanes_at(rest, back);
+    const double *pk = (const double *)psys__lanes_at(ks, back), *pd = (const double *)psys__lanes_at(kd, back);
+    const double *pr = (const double *)psys__lanes_at(rest, back);
     const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
     /* lane l takes lane l − o of this vector's forces, or lane 8 + l − o
      * of the last one's */
@@ -538,9 +486,9 @@ run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const
         __m512d g[3];
         double *ra = r + i;
         if (mA == 0xff) {
-            spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, true, uni, ks0, kd0, d, g);
+            psys__spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, true, uni, ks0, kd0, d, g);
         } else {
-            spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, false, uni, ks0, kd0, d, g);
+            psys__spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, false, uni, ks0, kd0, d, g);
         }
         for (int c = 0; c < d; c++) {
             double *fa = ra + (size_t)(2 * d + c) * S;
@@ -586,11 +534,11 @@ run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const
 {
     const size_t h0 = a & 7, end = h0 + len;
     const ptrdiff_t back = -(ptrdiff_t)h0, o = (ptrdiff_t)b - (ptrdiff_t)a;
-    double *r = (double *)lanes_at(rb + a, back); /* on a cache line */
+    double *r = (double *)psys__lanes_at(rb + a, back); /* on a cache line */
     r = __builtin_assume_aligned(r, 64);
-    const double *pk = (const double *)lanes_at(ks, back), *pd = (const double *)lanes_at(kd, back);
-    const double *pr = (const double *)lanes_at(rest, back);
-    double *pf = (double *)lanes_at(Fk, back);
+    const double *pk = (const double *)psys__lanes_at(ks, back), *pd = (const double *)psys__lanes_at(kd, back);
+    const double *pr = (const double *)psys__lanes_at(rest, back);
+    double *pf = (double *)psys__lanes_at(Fk, back);
     const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
     S &= ~(size_t)7;
     size_t i = 0;

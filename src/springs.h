@@ -227,4 +227,62 @@ static inline void run_short(const double *X, const double *V, double *F, size_t
 #else
 #define SPRING_CLONES
 #endif
+
+/* On x86-64 with GCC or Clang: AVX-512 run loops (spring_fused.c,
+ * force_spring.c) where the CPU has AVX-512, eight springs to a vector with
+ * the first and last vectors of a run masked. */
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#define SPRING_AVX512 1
+/** Whether the AVX-512 run loops run: the CPU has AVX-512F and the
+ *  environment does not set PSYS_SPRING_PLAIN=1 (the compiler's loops;
+ *  tests, benchmarks). */
+bool psys__springs_avx512(void);
+
+/* The address n doubles after p (n < 0: before), which may lie outside p's
+ * array: only for lanes a mask keeps out of every access. */
+static inline uintptr_t psys__lanes_at(const double *p, ptrdiff_t n)
+{
+    return (uintptr_t)p + (uintptr_t)n * sizeof(double);
+}
+
+/* The forces g of eight springs of a run from the slot ra of their first
+ * ends (on a cache line), their second ends o slots on, their parameters at
+ * pk, pd, pr: the operations of run_forces_d, lane by lane. Lanes outside m
+ * load nothing (their g is 0). full: m is all lanes (plain loads). */
+__attribute__((target("avx512f"), always_inline)) static inline void
+psys__spring_g8(const double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, const double *pr, __mmask8 m,
+          const bool full, const bool uni, __m512d ks0, __m512d kd0, const int d, __m512d g[3])
+{
+#define LD_A(p) (full ? _mm512_load_pd(p) : _mm512_maskz_load_pd(m, (p)))
+#define LD_U(p) (full ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, (p)))
+    const double *rb_ = (const double *)psys__lanes_at(ra, o);
+    __m512d l[3], dv[3];
+    for (int c = 0; c < d; c++) {
+        l[c] = _mm512_sub_pd(LD_A(ra + (size_t)c * S), LD_U(rb_ + (size_t)c * S));
+        dv[c] = _mm512_sub_pd(LD_A(ra + (size_t)(d + c) * S), LD_U(rb_ + (size_t)(d + c) * S));
+    }
+    __m512d len2 = _mm512_add_pd(_mm512_mul_pd(l[0], l[0]), _mm512_mul_pd(l[1], l[1]));
+    __m512d dot = _mm512_add_pd(_mm512_mul_pd(dv[0], l[0]), _mm512_mul_pd(dv[1], l[1]));
+    if (d == 3) {
+        len2 = _mm512_add_pd(len2, _mm512_mul_pd(l[2], l[2]));
+        dot = _mm512_add_pd(dot, _mm512_mul_pd(dv[2], l[2]));
+    }
+    const __m512d kks = uni ? ks0 : LD_U(pk), kkd = uni ? kd0 : LD_U(pd);
+    const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(_mm512_set1_pd(1.0), L);
+    __m512d mag = _mm512_mul_pd(
+        _mm512_add_pd(_mm512_mul_pd(kks, _mm512_sub_pd(L, LD_U(pr))), _mm512_mul_pd(_mm512_mul_pd(kkd, dot), inv)),
+        inv);
+    /* len2 == 0: +0; a NaN len2 keeps its NaN, as in psys__spring_mag */
+    mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, _mm512_setzero_pd(), _CMP_NEQ_UQ), mag);
+    for (int c = 0; c < d; c++)
+        g[c] = _mm512_mul_pd(mag, l[c]);
+#undef LD_A
+#undef LD_U
+}
+
+#else
+#define SPRING_AVX512 0
+static inline bool psys__springs_avx512(void) { return false; }
+#endif
 #endif

@@ -28,10 +28,15 @@ foreach(case thread_counts thread_counts_parallel_paths round_trip_runs)
   set_tests_properties(test_determinism.chain.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")
 endforeach()
 # And with the compiler's run loops instead of the AVX-512 ones where the
-# CPU has AVX-512 (PSYS_SPRING_PLAIN=1; elsewhere the same runs again).
-add_test(NAME cli.determinism.plain_spring
-  COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
-set_tests_properties(cli.determinism.plain_spring PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_SPRING_PLAIN=1")
+# CPU has AVX-512 (PSYS_SPRING_PLAIN=1; elsewhere the same runs again), on
+# both paths.
+foreach(variant "plain_spring;1" "plain_spring_generic;0")
+  list(GET variant 0 name)
+  list(GET variant 1 value)
+  add_test(NAME cli.determinism.${name}
+    COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
+  set_tests_properties(cli.determinism.${name} PROPERTIES ENVIRONMENT "PSYS_FUSED=${value};PSYS_SPRING_PLAIN=1")
+endforeach()
 foreach(case derivative_same_bits runs_same_bits chain_same_bits)
   add_test(NAME test_fused.plain_spring.${case} COMMAND test_fused ${case})
   set_tests_properties(test_fused.plain_spring.${case} PROPERTIES ENVIRONMENT "PSYS_SPRING_PLAIN=1")
