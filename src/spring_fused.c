@@ -556,25 +556,29 @@ run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const
                 ks0, kd0, d);
 }
 
+/* run_pair_512_d with uni and apart as constants (d is one). */
+__attribute__((target("avx512f"), always_inline)) static inline void
+run_pair_512_c(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd, const double *rest,
+               size_t len, double *Fk, bool uni, bool apart, const int d)
+{
+    if (uni && apart)
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, d);
+    else if (uni)
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, d);
+    else if (apart)
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, d);
+    else
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, d);
+}
+
 __attribute__((target("avx512f"))) static void run_pair_512(double *rb, size_t S, size_t a, size_t b,
                                                             const double *ks, const double *kd, const double *rest,
                                                             size_t len, double *Fk, bool uni, bool apart, int d)
 {
-    if (d == 3) {
-        if (uni)
-            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, 3)
-                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, 3);
-        else
-            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, 3)
-                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, 3);
-    } else {
-        if (uni)
-            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, 2)
-                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, 2);
-        else
-            apart ? run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, 2)
-                  : run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, 2);
-    }
+    if (d == 3)
+        run_pair_512_c(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, 3);
+    else
+        run_pair_512_c(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, 2);
 }
 #endif
 

@@ -6,16 +6,21 @@ psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path chain_sa
 # also runs small spring sets on several threads), and with it off (the
 # generic path, which systems with planes, pair forces, mouse springs and
 # the like take): the committed hashes of the examples and the thread-count
-# runs.
-foreach(variant "fused;1" "generic;0")
-  list(GET variant 0 name)
-  list(GET variant 1 value)
+# runs. And both again with the compiler's run loops instead of the
+# AVX-512 ones where the CPU has AVX-512 (PSYS_SPRING_PLAIN=1; elsewhere
+# the same runs again).
+foreach(variant "fused:PSYS_FUSED=1" "generic:PSYS_FUSED=0" "plain_spring:PSYS_FUSED=1,PSYS_SPRING_PLAIN=1"
+        "plain_spring_generic:PSYS_FUSED=0,PSYS_SPRING_PLAIN=1")
+  string(REPLACE ":" ";" parts "${variant}")
+  list(GET parts 0 name)
+  list(GET parts 1 env)
+  string(REPLACE "," ";" env "${env}")
   add_test(NAME cli.determinism.${name}
     COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
-  set_tests_properties(cli.determinism.${name} PROPERTIES ENVIRONMENT "PSYS_FUSED=${value}")
+  set_tests_properties(cli.determinism.${name} PROPERTIES ENVIRONMENT "${env}")
   foreach(case thread_counts thread_counts_parallel_paths round_trip_runs)
     add_test(NAME test_determinism.${name}.${case} COMMAND test_determinism ${case})
-    set_tests_properties(test_determinism.${name}.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=${value}")
+    set_tests_properties(test_determinism.${name}.${case} PROPERTIES ENVIRONMENT "${env}")
   endforeach()
 endforeach()
 # And with every rk4 and midpoint step swept through memory at once (the
@@ -27,16 +32,7 @@ foreach(case thread_counts thread_counts_parallel_paths round_trip_runs)
   add_test(NAME test_determinism.chain.${case} COMMAND test_determinism ${case})
   set_tests_properties(test_determinism.chain.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")
 endforeach()
-# And with the compiler's run loops instead of the AVX-512 ones where the
-# CPU has AVX-512 (PSYS_SPRING_PLAIN=1; elsewhere the same runs again), on
-# both paths.
-foreach(variant "plain_spring;1" "plain_spring_generic;0")
-  list(GET variant 0 name)
-  list(GET variant 1 value)
-  add_test(NAME cli.determinism.${name}
-    COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
-  set_tests_properties(cli.determinism.${name} PROPERTIES ENVIRONMENT "PSYS_FUSED=${value};PSYS_SPRING_PLAIN=1")
-endforeach()
+# The fused tests with the compiler's run loops (PSYS_SPRING_PLAIN=1).
 foreach(case derivative_same_bits runs_same_bits chain_same_bits)
   add_test(NAME test_fused.plain_spring.${case} COMMAND test_fused ${case})
   set_tests_properties(test_fused.plain_spring.${case} PROPERTIES ENVIRONMENT "PSYS_SPRING_PLAIN=1")
