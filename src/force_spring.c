@@ -259,12 +259,10 @@ __attribute__((target("avx512f"))) static void run_forces_512(const double *X, s
                                                               int d)
 {
     const size_t h0 = lo & 7, end = h0 + len;
-    const ptrdiff_t back = -(ptrdiff_t)h0, o = (ptrdiff_t)hi - (ptrdiff_t)lo;
-    const double *r = __builtin_assume_aligned((const double *)psys__lanes_at(X + lo, back), 64);
-    const double *pk = (const double *)psys__lanes_at(ks, back), *pd = (const double *)psys__lanes_at(kd, back);
-    const double *pr = (const double *)psys__lanes_at(rest, back);
-    double *pf = (double *)psys__lanes_at(F, back);
-    const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
+    const ptrdiff_t o = (ptrdiff_t)hi - (ptrdiff_t)lo;
+    const double *r = __builtin_assume_aligned((const double *)psys__lanes_at(X + lo, -(ptrdiff_t)h0), 64);
+    double *pf = (double *)psys__lanes_at(F, -(ptrdiff_t)h0);
+    const spring_par8 p = psys__spring_par8(ks, kd, rest, h0);
     cap &= ~(size_t)7;
     for (size_t i = 0; i < end; i += 8) {
         __mmask8 m = (__mmask8)(0xffu << (i == 0 ? h0 : 0));
@@ -273,16 +271,16 @@ __attribute__((target("avx512f"))) static void run_forces_512(const double *X, s
         __m512d g[3];
         if (m == 0xff) {
             if (d == 3)
-                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, true, uni, ks0, kd0, 3, g);
+                psys__spring_g8(r + i, o, cap, &p, i, m, true, uni, 3, g);
             else
-                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, true, uni, ks0, kd0, 2, g);
+                psys__spring_g8(r + i, o, cap, &p, i, m, true, uni, 2, g);
             for (int c = 0; c < d; c++)
                 _mm512_storeu_pd(pf + (size_t)c * SPRING_BLOCK + i, g[c]);
         } else {
             if (d == 3)
-                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, false, uni, ks0, kd0, 3, g);
+                psys__spring_g8(r + i, o, cap, &p, i, m, false, uni, 3, g);
             else
-                psys__spring_g8(r + i, o, cap, pk + i, pd + i, pr + i, m, false, uni, ks0, kd0, 2, g);
+                psys__spring_g8(r + i, o, cap, &p, i, m, false, uni, 2, g);
             for (int c = 0; c < d; c++)
                 _mm512_mask_storeu_pd(pf + (size_t)c * SPRING_BLOCK + i, m, g[c]);
         }

@@ -30,7 +30,6 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-#define FUSED_AVX512 SPRING_AVX512 /* run_pair_512, run_near_512 */
 
 #define FUSED_MAX_ROWS 8 /* per-particle forces before and after the springs */
 /* Overlapping runs with an offset of at least this many springs go in
@@ -423,15 +422,15 @@ static FUSED_INLINE void run_pair_d(double *rb, size_t S, size_t a, size_t b, co
     }
 }
 
-#if FUSED_AVX512
+#if SPRING_AVX512
 /* Eight springs of run_pair_512: f_a -= g, and f_b += g (apart) or g into
  * the scratch at pf. */
 __attribute__((target("avx512f"), always_inline)) static inline void
-spring8(double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, const double *pr, double *pf,
-        __mmask8 m, const bool full, const bool uni, const bool apart, __m512d ks0, __m512d kd0, const int d)
+spring8(double *ra, ptrdiff_t o, size_t S, const spring_par8 *p, size_t i, double *pf, __mmask8 m, const bool full,
+        const bool uni, const bool apart, const int d)
 {
     __m512d g[3];
-    psys__spring_g8(ra, o, S, pk, pd, pr, m, full, uni, ks0, kd0, d, g);
+    psys__spring_g8(ra, o, S, p, i, m, full, uni, d, g);
     double *rb_ = (double *)psys__lanes_at(ra, o);
     for (int c = 0; c < d; c++) {
         double *fa = ra + (size_t)(2 * d + c) * S;
@@ -466,12 +465,8 @@ run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const
                size_t len, const bool uni, const int d)
 {
     const size_t h0 = a & 7, endA = h0 + len, endB = endA + o;
-    const ptrdiff_t back = -(ptrdiff_t)h0;
-    double *r = (double *)psys__lanes_at(rb + a, back); /* on a cache line */
-    r = __builtin_assume_aligned(r, 64);
-    const double *pk = (const double *)psys__lanes_at(ks, back), *pd = (const double *)psys__lanes_at(kd, back);
-    const double *pr = (const double *)psys__lanes_at(rest, back);
-    const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
+    double *r = __builtin_assume_aligned((double *)psys__lanes_at(rb + a, -(ptrdiff_t)h0), 64); /* on a cache line */
+    const spring_par8 p = psys__spring_par8(ks, kd, rest, h0);
     /* lane l takes lane l − o of this vector's forces, or lane 8 + l − o
      * of the last one's */
     const __m512i shift = _mm512_add_epi64(_mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0), _mm512_set1_epi64(8 - (long long)o));
@@ -486,9 +481,9 @@ run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const
         __m512d g[3];
         double *ra = r + i;
         if (mA == 0xff) {
-            psys__spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, true, uni, ks0, kd0, d, g);
+            psys__spring_g8(ra, (ptrdiff_t)o, S, &p, i, mA, true, uni, d, g);
         } else {
-            psys__spring_g8(ra, (ptrdiff_t)o, S, pk + i, pd + i, pr + i, mA, false, uni, ks0, kd0, d, g);
+            psys__spring_g8(ra, (ptrdiff_t)o, S, &p, i, mA, false, uni, d, g);
         }
         for (int c = 0; c < d; c++) {
             double *fa = ra + (size_t)(2 * d + c) * S;
@@ -533,27 +528,23 @@ run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const
                size_t len, double *Fk, const bool uni, const bool apart, const int d)
 {
     const size_t h0 = a & 7, end = h0 + len;
-    const ptrdiff_t back = -(ptrdiff_t)h0, o = (ptrdiff_t)b - (ptrdiff_t)a;
-    double *r = (double *)psys__lanes_at(rb + a, back); /* on a cache line */
-    r = __builtin_assume_aligned(r, 64);
-    const double *pk = (const double *)psys__lanes_at(ks, back), *pd = (const double *)psys__lanes_at(kd, back);
-    const double *pr = (const double *)psys__lanes_at(rest, back);
-    double *pf = (double *)psys__lanes_at(Fk, back);
-    const __m512d ks0 = _mm512_set1_pd(ks[0]), kd0 = _mm512_set1_pd(kd[0]);
+    const ptrdiff_t o = (ptrdiff_t)b - (ptrdiff_t)a;
+    double *r = __builtin_assume_aligned((double *)psys__lanes_at(rb + a, -(ptrdiff_t)h0), 64); /* on a cache line */
+    double *pf = (double *)psys__lanes_at(Fk, -(ptrdiff_t)h0);
+    const spring_par8 p = psys__spring_par8(ks, kd, rest, h0);
     S &= ~(size_t)7;
     size_t i = 0;
     if (h0 || end < 8) {
         __mmask8 m = (__mmask8)(0xffu << h0);
         if (end < 8)
             m &= (__mmask8)((1u << end) - 1);
-        spring8(r, o, S, pk, pd, pr, pf, m, false, uni, apart, ks0, kd0, d);
+        spring8(r, o, S, &p, 0, pf, m, false, uni, apart, d);
         i = 8;
     }
     for (; i + 8 <= end; i += 8)
-        spring8(r + i, o, S, pk + i, pd + i, pr + i, pf + i, 0xff, true, uni, apart, ks0, kd0, d);
+        spring8(r + i, o, S, &p, i, pf + i, 0xff, true, uni, apart, d);
     if (i < end)
-        spring8(r + i, o, S, pk + i, pd + i, pr + i, pf + i, (__mmask8)((1u << (end - i)) - 1), false, uni, apart,
-                ks0, kd0, d);
+        spring8(r + i, o, S, &p, i, pf + i, (__mmask8)((1u << (end - i)) - 1), false, uni, apart, d);
 }
 
 /* run_pair_512_d with uni and apart as constants (d is one). */
@@ -591,7 +582,7 @@ static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, cons
                                   const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d,
                                   const bool k512)
 {
-#if FUSED_AVX512
+#if SPRING_AVX512
     if (k512) {
         run_pair_512(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, d);
         return;
@@ -729,7 +720,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
          * loop, the forces kept for a second loop over the second ends. The
          * run's ends in the ring, cut where either wraps around. */
         const size_t ia = lo & mask, ib = hi & mask;
-#if FUSED_AVX512
+#if SPRING_AVX512
         if (k512 && ib == ia + off && ib + len <= W) { /* neither range wraps around the ring */
             run_near_512(rb, S, ia, off, s->pks + k, s->pkd + k, s->prest + k, len, uni, d);
             continue;
@@ -771,7 +762,7 @@ static void fused_sweep_plain(const fused *fz, int d, double *rb, sweep *w, size
         sweep_to_d(fz, rb, w, upto, 3, false);
 }
 
-#if FUSED_AVX512
+#if SPRING_AVX512
 __attribute__((target("avx512f"), flatten)) static void fused_sweep_512(const fused *fz, int d, double *rb, sweep *w,
                                                                       size_t upto)
 {
@@ -784,7 +775,7 @@ __attribute__((target("avx512f"), flatten)) static void fused_sweep_512(const fu
 
 static void fused_sweep(const fused *fz, int d, double *rb, sweep *w, size_t upto)
 {
-#if FUSED_AVX512
+#if SPRING_AVX512
     if (fz->k512) {
         fused_sweep_512(fz, d, rb, w, upto);
         return;

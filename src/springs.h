@@ -246,13 +246,33 @@ static inline uintptr_t psys__lanes_at(const double *p, ptrdiff_t n)
     return (uintptr_t)p + (uintptr_t)n * sizeof(double);
 }
 
+/* A run's parameters as the AVX-512 loops read them: the loops start at
+ * the cache line holding the run's first end, whose first spring is then
+ * lane h0, so ks, kd and rest are seen h0 entries early (index i of the
+ * vector at i); ks0, kd0: every lane's ks and kd where the run shares them. */
+typedef struct spring_par8 {
+    const double *ks, *kd, *rest;
+    __m512d ks0, kd0;
+} spring_par8;
+
+__attribute__((target("avx512f"), always_inline)) static inline spring_par8
+psys__spring_par8(const double *ks, const double *kd, const double *rest, size_t h0)
+{
+    const ptrdiff_t back = -(ptrdiff_t)h0;
+    return (spring_par8){.ks = (const double *)psys__lanes_at(ks, back),
+                         .kd = (const double *)psys__lanes_at(kd, back),
+                         .rest = (const double *)psys__lanes_at(rest, back),
+                         .ks0 = _mm512_set1_pd(ks[0]),
+                         .kd0 = _mm512_set1_pd(kd[0])};
+}
+
 /* The forces g of eight springs of a run from the slot ra of their first
  * ends (on a cache line), their second ends o slots on, their parameters at
- * pk, pd, pr: the operations of run_forces_d, lane by lane. Lanes outside m
- * load nothing (their g is 0). full: m is all lanes (plain loads). */
+ * index i of p: the operations of run_forces_d, lane by lane. Lanes outside
+ * m load nothing (their g is 0). full: m is all lanes (plain loads). */
 __attribute__((target("avx512f"), always_inline)) static inline void
-psys__spring_g8(const double *ra, ptrdiff_t o, size_t S, const double *pk, const double *pd, const double *pr, __mmask8 m,
-          const bool full, const bool uni, __m512d ks0, __m512d kd0, const int d, __m512d g[3])
+psys__spring_g8(const double *ra, ptrdiff_t o, size_t S, const spring_par8 *p, size_t i, __mmask8 m, const bool full,
+                const bool uni, const int d, __m512d g[3])
 {
 #define LD_A(p) (full ? _mm512_load_pd(p) : _mm512_maskz_load_pd(m, (p)))
 #define LD_U(p) (full ? _mm512_loadu_pd(p) : _mm512_maskz_loadu_pd(m, (p)))
@@ -268,10 +288,10 @@ psys__spring_g8(const double *ra, ptrdiff_t o, size_t S, const double *pk, const
         len2 = _mm512_add_pd(len2, _mm512_mul_pd(l[2], l[2]));
         dot = _mm512_add_pd(dot, _mm512_mul_pd(dv[2], l[2]));
     }
-    const __m512d kks = uni ? ks0 : LD_U(pk), kkd = uni ? kd0 : LD_U(pd);
+    const __m512d kks = uni ? p->ks0 : LD_U(p->ks + i), kkd = uni ? p->kd0 : LD_U(p->kd + i);
     const __m512d L = _mm512_sqrt_pd(len2), inv = _mm512_div_pd(_mm512_set1_pd(1.0), L);
     __m512d mag = _mm512_mul_pd(
-        _mm512_add_pd(_mm512_mul_pd(kks, _mm512_sub_pd(L, LD_U(pr))), _mm512_mul_pd(_mm512_mul_pd(kkd, dot), inv)),
+        _mm512_add_pd(_mm512_mul_pd(kks, _mm512_sub_pd(L, LD_U(p->rest + i))), _mm512_mul_pd(_mm512_mul_pd(kkd, dot), inv)),
         inv);
     /* len2 == 0: +0; a NaN len2 keeps its NaN, as in psys__spring_mag */
     mag = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask(len2, _mm512_setzero_pd(), _CMP_NEQ_UQ), mag);

@@ -883,6 +883,31 @@ static void chooses_path(void)
     psys_system_destroy(s);
 }
 
+/* The AVX-512 run loops run exactly where the CPU has AVX-512F, unless
+ * PSYS_SPRING_PLAIN=1 asks for the compiler's loops (which the suite's
+ * PSYS_SPRING_PLAIN variants rely on to test both). */
+static void avx512_switch(void)
+{
+    const char *was = getenv("PSYS_SPRING_PLAIN");
+    char *keep = was ? strdup(was) : NULL;
+    unsetenv("PSYS_SPRING_PLAIN");
+#if SPRING_AVX512
+    const bool cpu = __builtin_cpu_supports("avx512f") != 0;
+#else
+    const bool cpu = false;
+#endif
+    CHECK(psys__springs_avx512() == cpu);
+    setenv("PSYS_SPRING_PLAIN", "0", 1);
+    CHECK(psys__springs_avx512() == cpu);
+    setenv("PSYS_SPRING_PLAIN", "1", 1);
+    CHECK(!psys__springs_avx512());
+    if (keep)
+        setenv("PSYS_SPRING_PLAIN", keep, 1);
+    else
+        unsetenv("PSYS_SPRING_PLAIN");
+    free(keep);
+}
+
 static const check_case cases[] = {
     {"derivative_same_bits", derivative_same_bits},
     {"runs_same_bits", runs_same_bits},
@@ -892,6 +917,7 @@ static const check_case cases[] = {
     {"shuffled_same_physics", shuffled_same_physics},
     {"state_order_same_bits", state_order_same_bits},
     {"state_order_cache", state_order_cache},
+    {"avx512_switch", avx512_switch},
     {NULL, NULL},
 };
 

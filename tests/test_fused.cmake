@@ -1,7 +1,8 @@
 # The fused derivative (src/spring_fused.c): the same bits as the generic one.
 psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path chain_same_bits chain_timed shuffled_same_physics
   state_order_same_bits
-  state_order_cache)
+  state_order_cache
+  avx512_switch)
 # The determinism checks again with the fused derivative forced (it then
 # also runs small spring sets on several threads), and with it off (the
 # generic path, which systems with planes, pair forces, mouse springs and
