@@ -418,6 +418,10 @@ psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, dou
         }
     }
     s->t = t_end;
+    /* The passes' partial steps projected controlled particles at their own
+     * sums of fractions of h, which can round off t_end: put them on their
+     * paths at the step's time, as a run resumed at t_end would. */
+    psys_system_apply_controllers(s, t_end);
     psys__box_wrap(s);
     if (h_taken)
         *h_taken = h;

@@ -161,6 +161,67 @@ static void check_ctl(double t, psys_system *sys, void *ctx)
     e->checks++;
 }
 
+/* Bit for bit: after every step the controlled particle holds exactly the
+ * controller's state at the step's time, also in steps a plane collision cut
+ * into partial steps (a resumed run puts it there; they must agree). */
+typedef struct {
+    size_t particle, bounces;
+    double last_vy;
+} on_path;
+
+static void check_on_path(double t, psys_system *sys, void *ctx)
+{
+    on_path *o = ctx;
+    size_t n = psys_system_count(sys) * 2;
+    double *x = malloc(n * sizeof(double)), *v = malloc(n * sizeof(double));
+    if (!x || !v) {
+        CHECK(!"out of memory");
+        free(x);
+        free(v);
+        return;
+    }
+    memcpy(x, psys_system_positions(sys), n * sizeof(double));
+    memcpy(v, psys_system_velocities(sys), n * sizeof(double));
+    psys_system_apply_controllers(sys, t);
+    const double *px = psys_system_positions(sys) + o->particle * 2;
+    const double *pv = psys_system_velocities(sys) + o->particle * 2;
+    bool same = memcmp(px, x + o->particle * 2, 2 * sizeof(double)) == 0
+                && memcmp(pv, v + o->particle * 2, 2 * sizeof(double)) == 0;
+    if (!same)
+        fprintf(stderr, "  t = %.17g: controlled x off by %.3g\n", t, maxdiff(px, x + o->particle * 2, 2));
+    CHECK(same);
+    double vy = v[2 * 2 + 1]; /* particle 2 falls onto the plane y = -1.5 */
+    o->bounces += o->last_vy < 0 && vy > 0 && x[2 * 2 + 1] < -1.45;
+    o->last_vy = vy;
+    free(x);
+    free(v);
+}
+
+static void test_on_path_through_bounces(void)
+{
+    for (size_t s = 0; s < NRUN; s++) {
+        char text[1536];
+        snprintf(text, sizeof text,
+                 "{\"psys\":1,\"dim\":2,\"integrator\":\"%s\",\"dt\":0.001,\"duration\":6,\"output\":{\"every\":1000000},"
+                 "\"particles\":[{\"id\":\"p\",\"x\":[0,0],\"fixed\":true},"
+                 "{\"id\":\"b\",\"x\":[1,0],\"v\":[0,0.5],\"mass\":0.5},{\"x\":[1,1],\"mass\":2},"
+                 "{\"id\":\"m\",\"x\":[2,0],\"control\":{\"type\":\"circle\",\"center\":[2,0.5],"
+                 "\"radius\":0.5,\"omega\":3}}],"
+                 "\"forces\":[{\"type\":\"gravity\",\"g\":[0,-9.81]},{\"type\":\"drag\",\"kd\":0.1},"
+                 "{\"type\":\"spring\",\"a\":\"p\",\"b\":\"b\",\"ks\":100,\"kd\":0.5},"
+                 "{\"type\":\"spring\",\"a\":1,\"b\":2,\"ks\":50,\"rest\":0.8},"
+                 "{\"type\":\"spring\",\"a\":2,\"b\":\"m\",\"ks\":10}],"
+                 "\"planes\":[{\"point\":[0,-1.5],\"normal\":[0,1],\"restitution\":0.7}]}",
+                 run_solvers[s]);
+        psys_scene *sc = load_scene(text);
+        on_path o = {3, 0, 0};
+        long steps = run_scene(sc, check_on_path, &o);
+        fprintf(stderr, "  %-7s %ld steps, %zu bounces\n", run_solvers[s], steps, o.bounces);
+        CHECK(o.bounces >= 2); /* the steps with collisions were checked */
+        psys_scene_destroy(sc);
+    }
+}
+
 /* A driven mechanism: the controlled particle "m" pulls a free particle "p"
  * through a damped spring under gravity, so the solver has real work. */
 static psys_scene *driven_scene(const char *integrator, int dim, const char *control)
@@ -1178,6 +1239,7 @@ static const check_case cases[] = {
     {"circle_3d_axis", test_circle_3d_axis},
     {"oscillate_run", test_oscillate_run},
     {"keyframes_run", test_keyframes_run},
+    {"on_path_through_bounces", test_on_path_through_bounces},
     {"errata_controller_velocity", test_errata_controller_velocity},
     {"energy_excludes_controlled", test_energy_excludes_controlled},
     {"release_makes_free", test_release_makes_free},

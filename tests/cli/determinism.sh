@@ -5,7 +5,8 @@
 #      gives the rows of the one-go run bit for bit, for every integrator,
 #      with controllers, muscles, mouse paths, collisions and pair forces;
 #   3. a run interrupted by SIGINT/SIGTERM and resumed from the checkpoint
-#      it wrote continues bit-identically;
+#      it wrote continues bit-identically, and rk45 taking its own steps
+#      (frames far apart, bounces cutting steps) resumes at the state written;
 #   4. the final states of examples/*.json match the committed hashes in
 #      tests/determinism.sha256 (so a change of results anywhere is seen).
 #
@@ -213,6 +214,17 @@ for integ in rk4 rk45 verlet; do
     interrupt_resume INT "$integ"
 done
 interrupt_resume TERM implicit-euler
+
+# rk45 with frames far apart takes its own step sizes, and its steps 217,
+# 224, 227 and 229 of long.json end in bounces on the plane (partial steps):
+# a checkpoint after any of steps 200..240 resumes at the state written.
+for ((a = 200; a <= 240; a++)); do
+    psys run long.json --integrator rk45 --steps "$a" --every 1000000 --out int.csv --checkpoint ck.json --quiet
+    expect_rc 0 "rk45 $a steps with --checkpoint"
+    psys run --resume ck.json --steps 1 --every 1000000 --out resumed.csv --quiet
+    expect_rc 0 "rk45 resume after $a steps"
+    expect_eq "$(tail -n 4 int.csv)" "$(sed -n 2,5p resumed.csv)" "rk45 split at step $a: the resumed run starts at the state written"
+done
 
 expect_no_tmp "whole test"
 finish
