@@ -56,6 +56,7 @@ static void springs_destroy(void *data)
     plan_free(s);
     free(s->soa);
     free(s->ring);
+    free(s->stage);
     free(s);
 }
 
@@ -791,6 +792,19 @@ psys_status psys__springs_prepare_rings(springs *s, size_t np, int T)
         s->ring_w = w;
         s->ring_t = t;
     }
+    return PSYS_OK;
+}
+
+psys_status psys__springs_prepare_stage(springs *s, size_t len)
+{
+    if (len <= s->stage_len)
+        return PSYS_OK;
+    double *p = psys__calloc_lines(1, len * sizeof(double));
+    if (!p)
+        return PSYS_ERR_NOMEM;
+    free(s->stage);
+    s->stage = p;
+    s->stage_len = len;
     return PSYS_OK;
 }
 

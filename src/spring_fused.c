@@ -70,6 +70,13 @@ typedef struct fused {
     double *xdot, *vdot;                   /* ydot's halves (no pass) */
     const psys_stage_pass *pass;           /* or the solver's work on ydot */
     size_t nd;
+    /* The chain's stage states of particles [zlo, zhi) in rings of R
+     * particles (psys__fused_chain): x of particle p at ring[(p mod R)·d],
+     * its v rd = R·d further on. The input state's ring (x, v above hold
+     * the rest) and the pass's next's, or NULL. */
+    const double *in_ring;
+    double *out_ring;
+    size_t rmask, rd, zlo, zhi;
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
     bool forced; /* PSYS_FUSED=1: small sets threaded too (read once per evaluation) */
     bool k512;   /* the AVX-512 run loops (run_pair_512, run_near_512); PSYS_SPRING_PLAIN=1: the
@@ -133,6 +140,41 @@ static inline void rows_at(double *rb, size_t S, int q, int d, size_t i0, double
         out[c] = c < d ? rb + (size_t)(q * d + c) * S + i0 : NULL;
 }
 
+/* The input state's x (half 0) or v (half 1) from particle a on: a run of
+ * particles never crosses a multiple of the window's ring_w, nor then of the
+ * stage ring's R (a multiple of it). */
+static inline const double *state_at(const fused *fz, int half, size_t a, const int d)
+{
+    if (fz->in_ring && a >= fz->zlo && a < fz->zhi)
+        return fz->in_ring + (half ? fz->rd : 0) + (a & fz->rmask) * (size_t)d;
+    return (half ? fz->v : fz->x) + a * (size_t)d;
+}
+
+/* Where the pass's next state goes for x (half 0) or v (half 1) from
+ * particle a on, or NULL (no next state). */
+static inline double *next_at(const fused *fz, int half, size_t a, const int d)
+{
+    if (fz->out_ring && a >= fz->zlo && a < fz->zhi)
+        return fz->out_ring + (half ? fz->rd : 0) + (a & fz->rmask) * (size_t)d;
+    const psys_stage_pass *p = fz->pass;
+    return p->next ? p->next + (half ? fz->nd : 0) + a * (size_t)d : NULL;
+}
+
+/* How many of particles [a, a + cnt) lie on a's side of the stage rings'
+ * edges zlo and zhi (all of them without rings): the pieces enter and
+ * leave take, each in one kind of storage. */
+static inline size_t ring_piece(const fused *fz, size_t a, size_t cnt)
+{
+    size_t e = a + cnt;
+    if (!fz->in_ring && !fz->out_ring)
+        return cnt;
+    if (a < fz->zlo && fz->zlo < e)
+        e = fz->zlo;
+    else if (a < fz->zhi && fz->zhi < e)
+        e = fz->zhi;
+    return e - a;
+}
+
 /* How far ahead enter_perm and leave_perm fetch the particles they gather
  * and scatter. */
 #define PERM_AHEAD 8
@@ -174,19 +216,15 @@ static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_
     }
 }
 
-/* Particles [a, a + cnt) enter the window (one contiguous piece of it). */
-static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+/* enter() for a piece of particles in one kind of storage. */
+static FUSED_INLINE void enter_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
-    if (fz->perm) {
-        enter_perm(fz, rb, a, cnt, d);
-        return;
-    }
     const size_t i0 = a & fz->mask;
     double *X[3], *V[3], *F[3];
     rows_at(rb, fz->S, 0, d, i0, X);
     rows_at(rb, fz->S, 1, d, i0, V);
     rows_at(rb, fz->S, 2, d, i0, F);
-    const double *src[2] = {fz->x + a * (size_t)d, fz->v + a * (size_t)d};
+    const double *src[2] = {state_at(fz, 0, a, d), state_at(fz, 1, a, d)};
     double *const *dst[2] = {X, V};
     for (int q = 0; q < 2; q++) {
         const double *restrict p = src[q];
@@ -212,12 +250,12 @@ static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt
 
 /* The solver's work (psys_stage_pass) on derivative components [off, off + m)
  * with values k: the expressions of rk_chain_stages, element by element. */
-static FUSED_INLINE void stage_apply(const psys_stage_pass *p, size_t off, const double *restrict k, size_t m)
+static FUSED_INLINE void stage_apply(const psys_stage_pass *p, size_t off, const double *restrict k, size_t m,
+                                     double *restrict nx)
 {
     const double h = p->h, w = p->w, an = p->a;
     const double *restrict base = p->base + off;
-    if (p->next) {
-        double *restrict nx = p->next + off;
+    if (nx) {
         for (size_t j = 0; j < m; j++)
             nx[j] = base[j] + h * (an * k[j]);
     }
@@ -314,21 +352,18 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
                     fz->vdot[pd + (size_t)q] = k[q];
                 }
             } else {
-                stage_apply(fz->pass, pd, fz->v + pd, (size_t)d); /* x' = v */
-                stage_apply(fz->pass, fz->nd + pd, k, (size_t)d);
+                stage_apply(fz->pass, pd, fz->v + pd, (size_t)d, next_at(fz, 0, p, d)); /* x' = v */
+                stage_apply(fz->pass, fz->nd + pd, k, (size_t)d, next_at(fz, 1, p, d));
             }
         }
     }
 }
 
-/* Particles [a, a + cnt) leave the window: the forces after the springs,
- * then ydot = [v | f/m] (not-free particles, inv_mass 0, get exactly 0). */
-static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+/* leave() for a piece of particles in one kind of storage: the forces
+ * after the springs, then ydot = [v | f/m] (not-free particles, inv_mass 0,
+ * get exactly 0). */
+static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
-    if (fz->perm) {
-        leave_perm(fz, rb, a, cnt, d);
-        return;
-    }
     const size_t i0 = a & fz->mask;
     double *V[3], *F[3];
     rows_at(rb, fz->S, 1, d, i0, V);
@@ -341,12 +376,40 @@ static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt
         accel(fz->inv_mass + a, F[0], F[1], F[2], cnt, fz->vdot + ad, d);
         return;
     }
-    stage_apply(fz->pass, ad, fz->v + ad, cnt * (size_t)d); /* x' = v */
+    stage_apply(fz->pass, ad, state_at(fz, 1, a, d), cnt * (size_t)d, next_at(fz, 0, a, d)); /* x' = v */
     double k[3 * SPRING_BLOCK];
     for (size_t j = 0; j < cnt; j += SPRING_BLOCK) {
         const size_t m = cnt - j < SPRING_BLOCK ? cnt - j : SPRING_BLOCK;
         accel(fz->inv_mass + a + j, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, m, k, d);
-        stage_apply(fz->pass, fz->nd + ad + j * (size_t)d, k, m * (size_t)d);
+        stage_apply(fz->pass, fz->nd + ad + j * (size_t)d, k, m * (size_t)d, next_at(fz, 1, a + j, d));
+    }
+}
+
+/* Particles [a, a + cnt) enter the window (one contiguous piece of it):
+ * from all over memory in the springs' internal order, else in pieces that
+ * each read one kind of storage (ring_piece). */
+static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    if (fz->perm) {
+        enter_perm(fz, rb, a, cnt, d);
+        return;
+    }
+    for (size_t m; cnt > 0; a += m, cnt -= m) {
+        m = ring_piece(fz, a, cnt);
+        enter_rows(fz, rb, a, m, d);
+    }
+}
+
+/* Particles [a, a + cnt) leave the window, as enter takes them. */
+static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    if (fz->perm) {
+        leave_perm(fz, rb, a, cnt, d);
+        return;
+    }
+    for (size_t m; cnt > 0; a += m, cnt -= m) {
+        m = ring_piece(fz, a, cnt);
+        leave_rows(fz, rb, a, m, d);
     }
 }
 
@@ -817,6 +880,9 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *y, doubl
     fz->vdot = ydot ? ydot + nd : NULL;
     fz->pass = pass;
     fz->nd = nd;
+    fz->in_ring = NULL;
+    fz->out_ring = NULL;
+    fz->rmask = fz->rd = fz->zlo = fz->zhi = 0;
 }
 
 bool psys__fused_eligible(const psys_system *sys)
@@ -868,9 +934,10 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
  * starting in p's block reaches that far). So stage i can follow stage
  * i − 1 at a distance of reach particles: all stages of a step sweep
  * through memory together, the few thousand particles between the first
- * and the last staying in cache, and at 10⁶ particles y, the weighted sum
- * and the stage states come from memory about once a step instead of once
- * per stage. Each stage has its own window; each particle sees the
+ * and the last staying in cache, and at 10⁶ particles y and the weighted
+ * sum come from memory about once a step instead of once per stage, and
+ * the stage states, in rings that stay in cache (stage_rings), not at all.
+ * Each stage has its own window; each particle sees the
  * operations of the stage-by-stage path in the same order (a sweep's bits
  * do not depend on where it stops, sweep_to_d).
  *
@@ -1040,6 +1107,33 @@ bool psys_system_timing_settled(const psys_system *sys)
     return !s || !s->chain.keyed || s->chain.pick >= 0 || s->chain.mode < 0;
 }
 
+/* The chain's stage states in rings (psys__fused_chain). Within one
+ * trapezoid, stage i + 1 has left every particle before stage i's done −
+ * reach − CHAIN_STEP by the time stage i writes a state: rings of R >
+ * reach + CHAIN_STEP particles hold every state still to be read, and the
+ * states stay in cache instead of going to memory and back once a step.
+ * Near a thread's range ends the patches after the barrier read the
+ * states of up to `stages` reaches (and a block) on either side: those
+ * stay in the solver's whole vectors. */
+static size_t ring_edge(int stages, size_t reach) { return (size_t)(stages + 1) * reach; }
+
+/* dst: the stages of src with the states of particles [zlo, zhi) in rings
+ * of R particles at mem (stage i's next state at mem + i·2·R·d). */
+static void stage_rings(fused *dst, const fused *src, int stages, double *mem, size_t R, int d, size_t zlo,
+                        size_t zhi)
+{
+    const size_t rd = R * (size_t)d;
+    for (int i = 0; i < stages; i++) {
+        dst[i] = src[i];
+        dst[i].rmask = R - 1;
+        dst[i].rd = rd;
+        dst[i].zlo = zlo;
+        dst[i].zhi = zhi;
+        dst[i].in_ring = i > 0 ? mem + 2 * rd * (size_t)(i - 1) : NULL;
+        dst[i].out_ring = i + 1 < stages ? mem + 2 * rd * (size_t)i : NULL;
+    }
+}
+
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
                               const psys_stage_pass *pass, bool *used)
 {
@@ -1072,13 +1166,26 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
         fused_bind(&fz[i], sys, i == 0 ? y0 : pass[i - 1].next, NULL, &pass[i]);
     }
     const size_t ring = 9 * psys__springs_ring_stride(s->ring_w);
+    /* Stage states in rings (stage_rings): R particles, a multiple of the
+     * window's, each thread its own; only where its sweep is long enough
+     * for them to pay and the particles are in their own order. */
+    size_t R = s->ring_w;
+    while (R <= reach + CHAIN_STEP)
+        R *= 2;
+    const size_t rd = R * (size_t)sys->dim, per = 2 * rd * (size_t)(stages - 1);
+    const size_t share = n / (size_t)T, edges = T <= 1 ? 0 : 2 * ring_edge(stages, reach);
+    const bool rings_on = !fz[0].perm && share > edges && share - edges >= 2 * R
+                          && psys__springs_prepare_stage(s, per * (size_t)T) == PSYS_OK;
     size_t lo[CHAIN_MAX_STAGES], hi[CHAIN_MAX_STAGES];
     if (T <= 1) {
+        fused fr[CHAIN_MAX_STAGES];
+        if (rings_on)
+            stage_rings(fr, fz, stages, s->stage, R, sys->dim, 0, n);
         for (int i = 0; i < stages; i++) {
             lo[i] = 0;
             hi[i] = n;
         }
-        chain_trapezoid(fz, stages, sys->dim, s->ring, ring, lo, hi);
+        chain_trapezoid(rings_on ? fr : fz, stages, sys->dim, s->ring, ring, lo, hi);
     } else {
 #ifdef _OPENMP
 #pragma omp parallel num_threads(T) private(lo, hi)
@@ -1091,7 +1198,13 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
                 lo[i] = t == 0 ? 0 : P + (size_t)i * reach;
                 hi[i] = t == Ta - 1 ? n : Q - (size_t)i * reach;
             }
-            chain_trapezoid(fz, stages, sys->dim, rings, ring, lo, hi);
+            /* the states the patches between ranges read stay whole */
+            const size_t edge = ring_edge(stages, reach);
+            fused fr[CHAIN_MAX_STAGES];
+            if (rings_on)
+                stage_rings(fr, fz, stages, s->stage + (size_t)t * per, R, sys->dim, t == 0 ? 0 : P + edge,
+                            t == Ta - 1 ? n : Q - edge);
+            chain_trapezoid(rings_on ? fr : fz, stages, sys->dim, rings, ring, lo, hi);
 #pragma omp barrier
             for (int i = 1; i < stages && t > 0; i++) {
                 sweep w;

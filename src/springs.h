@@ -74,6 +74,12 @@ typedef struct springs {
     double *ring;
     size_t ring_w;
     int ring_t;
+    /* The chain sweep's stage states, where one thread sweeps a set much
+     * longer than the stages' span (spring_fused.c, psys__fused_chain):
+     * rings of stage_r particles instead of whole state vectors, so they
+     * stay in cache and never go to memory. stage_len doubles allocated. */
+    double *stage;
+    size_t stage_len;
     /* The chain sweep or stage by stage, where the springs reach too far
      * for the chain to be the default: chosen by timing steps of each
      * (spring_fused.c, chain_timed). Zero (calloc): nothing timed yet. */
@@ -113,6 +119,8 @@ psys_status psys__springs_prepare_fused(springs *s, size_t np, int *T);
 /** The plan and T windows for the fused derivative, without a thread
  *  partition of the runs; PSYS_ERR_NOMEM when they cannot be allocated. */
 psys_status psys__springs_prepare_rings(springs *s, size_t np, int T);
+/** At least len doubles of stage-state rings (s->stage), on cache lines. */
+psys_status psys__springs_prepare_stage(springs *s, size_t len);
 /** Thread t's runs (rlo[t], rhi[t]) for np particles among T threads, cached. */
 void psys__springs_partition(springs *s, size_t np, int T);
 

@@ -413,12 +413,12 @@ static void runs_same_bits(void)
 /* A rope of n particles with a spring to the third neighbour every fifth
  * particle (offsets 1 and 3), gravity and drag: long enough for several
  * threads' ranges in the chain sweep. */
-static psys_system *rope(size_t n)
+static psys_system *rope(size_t n, int dim)
 {
     const double g3[3] = {0.3, -9.81, 0.2};
     lcg = 777;
-    psys_system *s = psys_system_create(3, NULL);
-    add_particles(s, 3, n, 1000);
+    psys_system *s = psys_system_create(dim, NULL);
+    add_particles(s, dim, n, 1000);
     CHECK(psys_system_add_drag(s, 0.2) == PSYS_OK);
     for (size_t i = 0; i + 1 < n; i++) {
         spring(s, i, i + 1);
@@ -452,22 +452,42 @@ static double *ode_state(const psys_ode *o, size_t *size)
     return y;
 }
 
+/* A 2-D sheet of nx × ny particles with gravity and drag. */
+static psys_system *sheet_2d(int nx, int ny)
+{
+    const double g2[2] = {0.2, -9.81};
+    lcg = 4242;
+    psys_system *s = psys_system_create(2, NULL);
+    add_particles(s, 2, (size_t)nx * (size_t)ny, nx);
+    CHECK(psys_system_add_gravity(s, g2) == PSYS_OK);
+    sheet_springs(s, 0, nx, ny);
+    CHECK(psys_system_add_drag(s, 0.1) == PSYS_OK);
+    CHECK(psys_system_set_fixed(s, 0, true) == PSYS_OK);
+    return s;
+}
+
 /* rk4 and midpoint steps with every stage swept together (derivative_chain)
  * against stage by stage (PSYS_CHAIN=0): the same bits, for 1 to 4
  * threads (the rope's ranges at 3 and 4 threads, trapezoids and the
  * patches between them) and for a system with muscles or controlled
- * particles, which the chain leaves to the stages. */
+ * particles, which the chain leaves to the stages. The ropes (3-D, 2-D) and
+ * the 2-D sheet are long enough for the stage states to go through rings
+ * (spring_fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
+ * the sheet. */
 static void chain_same_bits(void)
 {
     static const char *const solvers[] = {"midpoint", "rk4"};
     for (size_t k = 0; k < 2; k++)
-        for (int kind = 0; kind <= NKINDS; kind++) {
+        for (int kind = 0; kind <= NKINDS + 2; kind++) {
             double *want = NULL;
             size_t size = 0;
             for (int run = 0; run < 5; run++) { /* 0: stage by stage; 1..4: chain on 1..4 threads */
                 setenv("PSYS_FUSED", "1", 1);
                 setenv("PSYS_CHAIN", run == 0 ? "0" : "1", 1);
-                psys_system *s = kind == NKINDS ? rope(30000) : build(kind);
+                psys_system *s = kind == NKINDS       ? rope(30000, 3)
+                                 : kind == NKINDS + 1 ? rope(30000, 2)
+                                 : kind == NKINDS + 2 ? sheet_2d(100, 160)
+                                                      : build(kind);
                 CHECK(psys_system_set_threads(s, run == 0 ? 1 : run) == PSYS_OK);
                 psys_ode o = psys_system_ode(s);
                 system_chain = o.derivative_chain;
@@ -503,7 +523,7 @@ static void chain_same_bits(void)
      * rope (offset 3 + 512); a sheet of 300 columns (600 + 512) gets it by
      * timing (chain_timed): the first step asked about is the chain's, the
      * second stage by stage's; PSYS_CHAIN=1 always takes it. */
-    psys_system *s = rope(3000);
+    psys_system *s = rope(3000, 3);
     psys_ode o = psys_system_ode(s);
     CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
     psys_system_destroy(s);
@@ -547,7 +567,7 @@ static void chain_timed(void)
         const bool timed = run == 1 || run >= 3;
         if (!timed)
             setenv("PSYS_CHAIN", run == 0 ? "0" : "1", 1);
-        psys_system *s = rope(3000);
+        psys_system *s = rope(3000, 3);
         spring(s, 0, 700); /* reach 700 + 512 */
         psys_ode o = psys_system_ode(s);
         system_chain = o.derivative_chain;
