@@ -114,7 +114,7 @@ sentinel traj.csv
 sentinel energy.csv
 "$PSYS" run long.json --every 50000 --out traj.csv --energy energy.csv >bg-out.txt 2>bg-err.txt </dev/null &
 pid=$!
-sleep 0.7
+wait_caught "$pid" TERM && sleep 0.7
 expect_untouched traj.csv "during a run, the trajectory's final name"
 expect_untouched energy.csv "during a run, the energy file's final name"
 kill -TERM "$pid" 2>/dev/null

@@ -193,7 +193,7 @@ interrupt_resume() {
     "$PSYS" run long.json --integrator "$integ" --every 1000000 --out int.csv --checkpoint ck.json --quiet \
         >out.txt 2>err.txt </dev/null &
     local pid=$!
-    sleep 0.4
+    wait_caught "$pid" "$sig" && sleep 0.4
     kill -"$sig" "$pid" 2>/dev/null
     wait "$pid"
     RC=$?

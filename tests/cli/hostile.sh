@@ -100,7 +100,7 @@ EOF
     exec "$PSYS" run forever.json --every 100000 --out forever.csv --energy forever-e.csv --checkpoint forever-ck.json
 ) >out.txt 2>err.txt </dev/null &
 pid=$! # psys itself (exec), so that it gets the signal
-sleep 1
+wait_caught "$pid" INT && sleep 1
 kill -INT "$pid" 2>/dev/null
 wait "$pid"
 RC=$?

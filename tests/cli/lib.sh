@@ -163,6 +163,29 @@ expect_no_tmp() {
     fi
 }
 
+# wait_caught PID SIG: wait until the background psys PID catches SIG (its
+# handler is installed: SigCgt in /proc/PID/status). A script's background
+# job starts with SIGINT ignored, so a SIGINT sent before psys installs its
+# handler is lost and the run goes on for ever; a SIGTERM kills it without
+# its files. After 60 s (or if PID ends first): a failed check, PID killed.
+wait_caught() {
+    local pid=$1 sig=$2 num mask i
+    num=$(kill -l "$sig")
+    for ((i = 0; i < 600; i++)); do
+        mask=$(awk '/^SigCgt:/ { print $2 }' "/proc/$pid/status" 2>/dev/null)
+        [ -n "$mask" ] || break
+        # psys itself, not a shell that has yet to exec it
+        if [ "$(cat "/proc/$pid/comm" 2>/dev/null)" = psys ] && (((16#$mask >> (num - 1)) & 1)); then
+            ok
+            return 0
+        fi
+        sleep 0.1
+    done
+    fail "psys (pid $pid) did not catch SIG$sig within 60 s"
+    kill -KILL "$pid" 2>/dev/null
+    return 1
+}
+
 # sentinel FILE: give FILE a recognisable pre-existing content (and keep a copy).
 sentinel() {
     printf 'pre-existing content of %s\nmust survive a run that cannot start\n' "$1" >"$1"

@@ -216,7 +216,7 @@ if [ "$HAVE_FFMPEG" = 1 ]; then
     "$PSYS" run swing.json --duration 1000 --render long.mp4 --size 64x48 --fps 50 --camera fit=start \
         >out.txt 2>err.txt </dev/null &
     pid=$!
-    sleep 1.5
+    wait_caught "$pid" INT && sleep 1.5
     kill -INT "$pid"
     wait "$pid"
     RC=$?
