@@ -184,7 +184,7 @@ static inline size_t ring_piece(const fused *fz, size_t a, size_t cnt)
 #define PERM_PREFETCH(p) ((void)(p))
 #endif
 
-/* enter() for slots [a, a + cnt) in the springs' internal order: x, v and
+/* Entering (window_move) for slots [a, a + cnt) in the springs' internal order: x, v and
  * the masses gathered particle by particle, in pieces of SPRING_BLOCK (the
  * forces before the springs act on each particle alone). */
 static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
@@ -216,7 +216,7 @@ static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_
     }
 }
 
-/* enter() for a piece of particles in one kind of storage. */
+/* Particles of one piece in one kind of storage enter the window (window_move). */
 static FUSED_INLINE void enter_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
     const size_t i0 = a & fz->mask;
@@ -309,7 +309,7 @@ static FUSED_INLINE void accel(const double *restrict im, const double *restrict
     }
 }
 
-/* leave() for slots [a, a + cnt) in the springs' internal order: each
+/* Leaving (window_move) for slots [a, a + cnt) in the springs' internal order: each
  * particle's derivative (or the solver's work on it) at its own place, the
  * same expressions element by element. */
 static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
@@ -359,7 +359,7 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
     }
 }
 
-/* leave() for a piece of particles in one kind of storage: the forces
+/* Particles of one piece in one kind of storage leave the window (window_move): the forces
  * after the springs, then ydot = [v | f/m] (not-free particles, inv_mass 0,
  * get exactly 0). */
 static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
@@ -385,31 +385,24 @@ static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_
     }
 }
 
-/* Particles [a, a + cnt) enter the window (one contiguous piece of it):
- * from all over memory in the springs' internal order, else in pieces that
- * each read one kind of storage (ring_piece). */
-static FUSED_INLINE void enter(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+/* Particles [a, a + cnt), one contiguous piece of the window, enter it
+ * (`in`) or leave it: from all over memory in the springs' internal order,
+ * else in pieces that each use one kind of storage (ring_piece). */
+static FUSED_INLINE void window_move(const fused *fz, double *rb, size_t a, size_t cnt, const int d, const bool in)
 {
     if (fz->perm) {
-        enter_perm(fz, rb, a, cnt, d);
+        if (in)
+            enter_perm(fz, rb, a, cnt, d);
+        else
+            leave_perm(fz, rb, a, cnt, d);
         return;
     }
     for (size_t m; cnt > 0; a += m, cnt -= m) {
         m = ring_piece(fz, a, cnt);
-        enter_rows(fz, rb, a, m, d);
-    }
-}
-
-/* Particles [a, a + cnt) leave the window, as enter takes them. */
-static FUSED_INLINE void leave(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
-{
-    if (fz->perm) {
-        leave_perm(fz, rb, a, cnt, d);
-        return;
-    }
-    for (size_t m; cnt > 0; a += m, cnt -= m) {
-        m = ring_piece(fz, a, cnt);
-        leave_rows(fz, rb, a, m, d);
+        if (in)
+            enter_rows(fz, rb, a, m, d);
+        else
+            leave_rows(fz, rb, a, m, d);
     }
 }
 
@@ -728,7 +721,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         size_t cnt_ = W - (loaded & mask);                                  \
         if (cnt_ > (p) - loaded)                                            \
             cnt_ = (p) - loaded;                                            \
-        enter(fz, rb, loaded, cnt_, d);                                     \
+        window_move(fz, rb, loaded, cnt_, d, true);                         \
         loaded += cnt_;                                                     \
     }
 #define LEAVE_TO(p)                                                         \
@@ -739,7 +732,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         LOAD_TO(e_)                                                         \
         size_t a_ = done > P ? done : P, z_ = e_ < Q ? e_ : Q;              \
         if (a_ < z_)                                                        \
-            leave(fz, rb, a_, z_ - a_, d);                                  \
+            window_move(fz, rb, a_, z_ - a_, d, false);                     \
         done = e_;                                                          \
     }
     for (; r < w->r1; r++) {
