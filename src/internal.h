@@ -286,8 +286,10 @@ bool psys__fused_chain_eligible(psys_system *sys, int stages);
 int psys__fused_chain_pick(const psys_system *sys);
 /** All stages of a chain Runge–Kutta step (psys_ode.derivative_chain) in
  *  one sweep: stage i on y_i (y0, then pass[i-1].next) with pass[i] applied;
- *  the bits of psys__fused_derivative stage after stage. *used false (and
- *  nothing done) when the system is not eligible. */
+ *  the bits of psys__fused_derivative stage after stage. y0 NULL: the
+ *  system's own x and v, also standing for the passes' base (NULL there);
+ *  only with the state in the particles' order. *used false (and nothing
+ *  done) when the system is not eligible. */
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
                               const psys_stage_pass *pass, bool *used);
 /** The springs' internal order (slot -> particle, covering *perm_n

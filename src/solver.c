@@ -189,10 +189,10 @@ int psys__solver_threads(const psys_solver *s)
 #endif
 }
 
-psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
+/* The first non-finite component of y (whatever the thread count), or
+ * SIZE_MAX. */
+static size_t first_nonfinite(const psys_solver *s, const double *y)
 {
-    if (s->ode.project)
-        s->ode.project(s->ode.ctx, t1, y1);
     /* Whether any component is not finite: its exponent bits are all set,
      * and only then does adding one to the exponent carry into the sign
      * bit. AND, ADD and OR vectorize; a branch per component does not. */
@@ -202,17 +202,23 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && s->n >= PSYS_PAR_MIN) reduction(|: any))
     for (size_t i = 0; i < s->n; i++) {
         uint64_t u;
-        memcpy(&u, &y1[i], sizeof u);
+        memcpy(&u, &y[i], sizeof u);
         any |= (u & expo) + one;
     }
-    /* The first non-finite component, whatever the thread count. */
-    size_t bad = SIZE_MAX;
     if (any >> 63)
         for (size_t i = 0; i < s->n; i++)
-            if (!isfinite(y1[i])) {
-                bad = i;
-                break;
-            }
+            if (!isfinite(y[i]))
+                return i;
+    return SIZE_MAX;
+}
+
+psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
+{
+    const bool known = s->y1_finite; /* the stages looked already */
+    s->y1_finite = false;
+    if (s->ode.project)
+        s->ode.project(s->ode.ctx, t1, y1);
+    const size_t bad = known ? SIZE_MAX : first_nonfinite(s, y1);
     if (bad != SIZE_MAX) {
         s->bad = bad;
         return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);

@@ -28,6 +28,10 @@ struct psys_solver {
     double h_next;
     size_t rejected;
     size_t bad;
+    /* The stages found every component of the result finite and project
+     * changes none (psys_stage_pass.finite): commit need not look again.
+     * Set just before a successful commit; commit clears it. */
+    bool y1_finite;
     psys_error err;
     /* implicit solvers */
     void *impl;               /* solver-kind state (e.g. the sparse matrix) */

@@ -112,7 +112,7 @@ static int chain_role(const psys__tableau *tab, int i, int nw, int seen, int las
 /* Stage i's work on its derivative (psys_stage_pass): weight into acc (y1)
  * by its role, and the next stage's state into next (NULL after the last). */
 static psys_stage_pass chain_pass(const psys__tableau *tab, int i, double h, const double *y0, double *y1,
-                                  double *next, int nw, int seen, int last)
+                                  double *next, int nw, int seen, int last, int *finite)
 {
     const bool more = i + 1 < tab->stages;
     const int role = chain_role(tab, i, nw, seen, last);
@@ -120,6 +120,7 @@ static psys_stage_pass chain_pass(const psys__tableau *tab, int i, double h, con
     p.acc_op = role == 1 ? 2 : more ? (role == 2 ? 0 : 1) : (role == 2 ? 3 : 4);
     p.next = more ? next : NULL;
     p.a = more ? tab->a[i + 1][i] : 0;
+    p.finite = i == last ? finite : NULL; /* the pass that completes acc */
     return p;
 }
 
@@ -129,9 +130,12 @@ static psys_stage_pass chain_pass(const psys__tableau *tab, int i, double h, con
  * stage, the next state alternates between two vectors, since the stage's
  * own state is read while it is written. The operations per element are
  * those of rk_chain_stages (psys_stage_pass.acc_op), so the same bits.
- * PSYS_ERR_UNSUPPORTED, with nothing done, when the ODE declines. */
+ * y0 is the step's start only once *loaded: the chain may read the ODE's
+ * state where it is (derivative_chain_current) and spare the copy; else
+ * y0 is loaded here. PSYS_ERR_UNSUPPORTED, with nothing done (and y0
+ * perhaps loaded), when the ODE declines. */
 static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0,
-                                  double *y1, int nw, int last)
+                                  bool *loaded, double *y1, int nw, int last)
 {
     const int ns = tab->stages;
     if (s->ode.derivative_chain && ns > 1 && s->ode.derivative_chain(s->ode.ctx, t, NULL, ns, NULL, NULL) == PSYS_OK) {
@@ -139,26 +143,43 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
          * (the ODE may still be reading stage i's state while it writes
          * stage i + 1's), slots YTMP, K0 + 1, ..., K0 + ns - 2. */
         psys_stage_pass pass[7];
+        int finite = -1;
         for (int i = 0, seen = 0; i < ns; i++) {
             double *next = i + 1 < ns ? s->buf[i == 0 ? YTMP : K0 + i] : NULL;
-            pass[i] = chain_pass(tab, i, h, y0, y1, next, nw, seen, last);
+            pass[i] = chain_pass(tab, i, h, NULL, y1, next, nw, seen, last, &finite);
             if (tab->b[i] != 0)
                 seen++;
         }
-        psys_status st = s->ode.derivative_chain(s->ode.ctx, t, y0, ns, tab->c, pass);
-        if (st == PSYS_OK)
+        psys_status st = PSYS_ERR_UNSUPPORTED;
+        if (s->ode.derivative_chain_current && !*loaded)
+            st = s->ode.derivative_chain_current(s->ode.ctx, t, ns, tab->c, pass);
+        if (st == PSYS_ERR_UNSUPPORTED) {
+            if (!*loaded)
+                s->ode.get_state(s->ode.ctx, y0);
+            *loaded = true;
+            for (int i = 0; i < ns; i++)
+                pass[i].base = y0;
+            st = s->ode.derivative_chain(s->ode.ctx, t, y0, ns, tab->c, pass);
+        }
+        if (st == PSYS_OK) {
+            s->y1_finite = finite == 1;
             return PSYS_OK;
+        }
         if (st == PSYS_ERR_UNSUPPORTED) /* it accepted the step: declining now is a fault, not a fallback */
             return psys__fail(&s->err, PSYS_ERR_INVALID, "the derivative declined a step at t = %.17g", t);
         return psys__fail(&s->err, st, "the derivative evaluation failed in the step from t = %.17g", t);
     }
     if (!s->ode.derivative_stage || s->ode.derivative_stage(s->ode.ctx, t, NULL, NULL) != PSYS_OK)
         return PSYS_ERR_UNSUPPORTED; /* asked before any projection: callbacks run once per stage */
+    if (!*loaded)
+        s->ode.get_state(s->ode.ctx, y0);
+    *loaded = true;
     double *next[2] = {s->buf[YTMP], ns > 1 ? s->buf[K0 + 1] : NULL};
     double *yi = y0;
-    int seen = 0;
+    int seen = 0, finite = -1;
     for (int i = 0; i < ns; i++) {
-        const psys_stage_pass p = chain_pass(tab, i, h, y0, y1, i + 1 < ns ? next[i & 1] : NULL, nw, seen, last);
+        const psys_stage_pass p =
+            chain_pass(tab, i, h, y0, y1, i + 1 < ns ? next[i & 1] : NULL, nw, seen, last, &finite);
         if (tab->b[i] != 0)
             seen++;
         const double ti = t + tab->c[i] * h;
@@ -172,9 +193,12 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
             return psys__fail(&s->err, st, "the derivative evaluation failed at t = %.17g", ti);
         yi = p.next;
     }
+    s->y1_finite = finite == 1;
     return PSYS_OK;
 }
 
+/* The stages of a chain tableau into y1; y0 gets the step's start (get_state)
+ * unless the ODE's chain reads it where it is (rk_chain_fused). */
 static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, double t, double h, double *y0,
                                    double *y1)
 {
@@ -188,11 +212,14 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
             nw++;
             last = j;
         }
+    bool loaded = false;
     if ((s->ode.derivative_stage || s->ode.derivative_chain) && nw > 0) {
-        psys_status st = rk_chain_fused(s, tab, t, h, y0, y1, nw, last);
+        psys_status st = rk_chain_fused(s, tab, t, h, y0, &loaded, y1, nw, last);
         if (st != PSYS_ERR_UNSUPPORTED)
             return st;
     }
+    if (!loaded)
+        s->ode.get_state(s->ode.ctx, y0);
     int seen = 0;
     for (int i = 0; i < tab->stages; i++) {
         psys_status st = psys__solver_eval(s, t + tab->c[i] * h, i == 0 ? y0 : yt, k);
@@ -264,9 +291,13 @@ static psys_status rk_fixed_step(psys_solver *s, double h, double *h_taken)
 {
     double *y0 = s->buf[Y0], *y1 = s->buf[Y1];
     double t = s->ode.get_time(s->ode.ctx);
-    s->ode.get_state(s->ode.ctx, y0);
-    psys_status st = rk_is_chain(s->cls->tab) ? rk_chain_stages(s, s->cls->tab, t, h, y0, y1)
-                                              : rk_stages(s, s->cls->tab, t, h, y0, y1);
+    psys_status st;
+    if (rk_is_chain(s->cls->tab)) {
+        st = rk_chain_stages(s, s->cls->tab, t, h, y0, y1); /* loads y0 where it needs it */
+    } else {
+        s->ode.get_state(s->ode.ctx, y0);
+        st = rk_stages(s, s->cls->tab, t, h, y0, y1);
+    }
     if (st == PSYS_OK)
         st = psys__solver_commit(s, y1, t + h);
     *h_taken = h;

@@ -23,6 +23,7 @@
 #include "springs.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -69,6 +70,9 @@ typedef struct fused {
     const uint32_t *perm;                  /* the springs' internal order (slot -> particle), or NULL */
     double *xdot, *vdot;                   /* ydot's halves (no pass) */
     const psys_stage_pass *pass;           /* or the solver's work on ydot */
+    const double *base[2];                 /* the pass's base, x and v halves (the system's own x, v where
+                                              the chain reads them in place: psys__fused_chain) */
+    atomic_int *nonfinite;                 /* set when a pass asked to (.finite) wrote a non-finite acc */
     size_t nd;
     /* The chain's stage states of particles [zlo, zhi) in rings of R
      * particles (psys__fused_chain): x of particle p at ring[(p mod R)·d],
@@ -248,19 +252,37 @@ static FUSED_INLINE void enter_rows(const fused *fz, double *rb, size_t a, size_
         fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
 }
 
+/* Bit 63 set when one of a[0..m) is not finite: its exponent bits are all
+ * set, and only then does adding one to the exponent carry into the sign
+ * bit (AND, ADD and OR vectorize; a branch per component does not). */
+static FUSED_INLINE uint64_t nonfinite_bits(const double *restrict a, size_t m)
+{
+    const uint64_t expo = 0x7ff0000000000000u, one = 0x0010000000000000u;
+    uint64_t any = 0;
+    for (size_t j = 0; j < m; j++) {
+        uint64_t u;
+        memcpy(&u, &a[j], sizeof u);
+        any |= (u & expo) + one;
+    }
+    return any;
+}
+
 /* The solver's work (psys_stage_pass) on derivative components [off, off + m)
- * with values k: the expressions of rk_chain_stages, element by element. */
-static FUSED_INLINE void stage_apply(const psys_stage_pass *p, size_t off, const double *restrict k, size_t m,
-                                     double *restrict nx)
+ * with values k and the step's start at base (not always p->base + off:
+ * fused.base): the expressions of rk_chain_stages, element by element.
+ * Returns nonfinite_bits of what it wrote to acc where the pass asks
+ * (.finite), read back while still in cache: the solver then need not pass
+ * over the whole result again. */
+static FUSED_INLINE uint64_t stage_apply(const psys_stage_pass *p, const double *restrict base, size_t off,
+                                         const double *restrict k, size_t m, double *restrict nx)
 {
     const double h = p->h, w = p->w, an = p->a;
-    const double *restrict base = p->base + off;
     if (nx) {
         for (size_t j = 0; j < m; j++)
             nx[j] = base[j] + h * (an * k[j]);
     }
     if (!p->acc)
-        return;
+        return 0;
     double *restrict acc = p->acc + off;
     switch (p->acc_op) {
     case 0:
@@ -284,6 +306,7 @@ static FUSED_INLINE void stage_apply(const psys_stage_pass *p, size_t off, const
             acc[j] = base[j] + h * (acc[j] + w * k[j]);
         break;
     }
+    return p->finite ? nonfinite_bits(acc, m) : 0;
 }
 
 /* f/m of `cnt` particles (rows f0..f2 of the window) into acc, particle-major;
@@ -309,12 +332,21 @@ static FUSED_INLINE void accel(const double *restrict im, const double *restrict
     }
 }
 
+/* A pass that asked (.finite) wrote a non-finite acc where bit 63 of bits
+ * is set; threads may say so at once, all with the same value. */
+static FUSED_INLINE void note_nonfinite(const fused *fz, uint64_t bits)
+{
+    if (bits >> 63)
+        atomic_store_explicit(fz->nonfinite, 1, memory_order_relaxed);
+}
+
 /* Leaving (window_move) for slots [a, a + cnt) in the springs' internal order: each
  * particle's derivative (or the solver's work on it) at its own place, the
  * same expressions element by element. */
 static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
     double m[SPRING_BLOCK], k[3];
+    uint64_t bits = 0;
     for (size_t j0 = 0; j0 < cnt; j0 += SPRING_BLOCK) {
         const size_t c = cnt - j0 < SPRING_BLOCK ? cnt - j0 : SPRING_BLOCK, i0 = (a + j0) & fz->mask;
         double *V[3], *F[3];
@@ -337,7 +369,7 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
                 } else {
                     for (int half = 0; half < 2; half++) { /* x and v parts */
                         const size_t h = half ? fz->nd : 0;
-                        PERM_PREFETCH(ps->base + h + pf);
+                        PERM_PREFETCH(fz->base[half] + pf);
                         if (ps->next)
                             PERM_PREFETCH(ps->next + h + pf);
                         if (ps->acc)
@@ -352,11 +384,13 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
                     fz->vdot[pd + (size_t)q] = k[q];
                 }
             } else {
-                stage_apply(fz->pass, pd, fz->v + pd, (size_t)d, next_at(fz, 0, p, d)); /* x' = v */
-                stage_apply(fz->pass, fz->nd + pd, k, (size_t)d, next_at(fz, 1, p, d));
+                bits |= stage_apply(fz->pass, fz->base[0] + pd, pd, fz->v + pd, (size_t)d,
+                                    next_at(fz, 0, p, d)); /* x' = v */
+                bits |= stage_apply(fz->pass, fz->base[1] + pd, fz->nd + pd, k, (size_t)d, next_at(fz, 1, p, d));
             }
         }
     }
+    note_nonfinite(fz, bits);
 }
 
 /* Particles of one piece in one kind of storage leave the window (window_move): the forces
@@ -376,13 +410,16 @@ static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_
         accel(fz->inv_mass + a, F[0], F[1], F[2], cnt, fz->vdot + ad, d);
         return;
     }
-    stage_apply(fz->pass, ad, state_at(fz, 1, a, d), cnt * (size_t)d, next_at(fz, 0, a, d)); /* x' = v */
+    uint64_t bits = stage_apply(fz->pass, fz->base[0] + ad, ad, state_at(fz, 1, a, d), cnt * (size_t)d,
+                                next_at(fz, 0, a, d)); /* x' = v */
     double k[3 * SPRING_BLOCK];
     for (size_t j = 0; j < cnt; j += SPRING_BLOCK) {
         const size_t m = cnt - j < SPRING_BLOCK ? cnt - j : SPRING_BLOCK;
         accel(fz->inv_mass + a + j, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, m, k, d);
-        stage_apply(fz->pass, fz->nd + ad + j * (size_t)d, k, m * (size_t)d, next_at(fz, 1, a + j, d));
+        const size_t o = ad + j * (size_t)d;
+        bits |= stage_apply(fz->pass, fz->base[1] + o, fz->nd + o, k, m * (size_t)d, next_at(fz, 1, a + j, d));
     }
+    note_nonfinite(fz, bits);
 }
 
 /* Particles [a, a + cnt), one contiguous piece of the window, enter it
@@ -850,7 +887,8 @@ static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1,
 
 /* fz (its forces from eligible()) over sys's springs, windows and
  * particles: the state y, and either ydot or the solver's pass. */
-static void fused_bind(fused *fz, const psys_system *sys, const double *y, double *ydot, const psys_stage_pass *pass)
+static void fused_bind(fused *fz, const psys_system *sys, const double *x, const double *v, double *ydot,
+                       const psys_stage_pass *pass, atomic_int *nonfinite)
 {
     const springs *s = sys->springs;
     const size_t nd = sys->n * (size_t)sys->dim;
@@ -859,8 +897,8 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *y, doubl
     fz->W = s->ring_w;
     fz->mask = s->ring_w - 1;
     fz->S = psys__springs_ring_stride(s->ring_w);
-    fz->x = y;
-    fz->v = y + nd;
+    fz->x = x;
+    fz->v = v;
     fz->mass = sys->mass;
     fz->inv_mass = sys->inv_mass;
     fz->perm = s->perm;
@@ -872,10 +910,25 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *y, doubl
     fz->xdot = ydot;
     fz->vdot = ydot ? ydot + nd : NULL;
     fz->pass = pass;
+    /* base NULL: the chain from the system's own state (psys__fused_chain) */
+    fz->base[0] = pass && pass->base ? pass->base : sys->x;
+    fz->base[1] = pass && pass->base ? pass->base + nd : sys->v;
+    fz->nonfinite = nonfinite;
     fz->nd = nd;
     fz->in_ring = NULL;
     fz->out_ring = NULL;
     fz->rmask = fz->rd = fz->zlo = fz->zhi = 0;
+}
+
+/* Answers the passes that asked (psys_stage_pass.finite) once their sweeps
+ * are done: whether all they wrote to acc was finite (nonfinite unset).
+ * Controlled particles: not answered, since the solver's projection of the
+ * result may change it. */
+static void answer_finite(const psys_system *sys, const psys_stage_pass *pass, int stages, atomic_int *nonfinite)
+{
+    for (int i = 0; pass && i < stages; i++)
+        if (pass[i].finite && pass[i].acc && sys->nctrl == 0)
+            *pass[i].finite = atomic_load_explicit(nonfinite, memory_order_relaxed) == 0;
 }
 
 bool psys__fused_eligible(const psys_system *sys)
@@ -904,7 +957,8 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     const double *rest = psys__springs_rest_now(s, e->t);
     for (size_t m = 0; m < s->nm; m++)
         s->prest[s->pos[s->midx[m]]] = rest[s->midx[m]];
-    fused_bind(&fz, sys, y, ydot, pass);
+    atomic_int nonfinite = 0;
+    fused_bind(&fz, sys, y, y + nd, ydot, pass, &nonfinite);
     const size_t ring = 9 * fz.S;
     if (T <= 1) {
         fused_part(&fz, sys->dim, s->ring, 0, s->nruns, 0, n);
@@ -916,6 +970,7 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
             fused_part(&fz, sys->dim, s->ring + (size_t)t * ring, s->rlo[t], s->rhi[t], psys__part_first(n, T, t),
                        psys__part_first(n, T, t + 1));
     }
+    answer_finite(sys, pass, 1, &nonfinite);
     *used = true;
     return PSYS_OK;
 }
@@ -1153,10 +1208,13 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
     st = psys__springs_prepare_rings(s, n, T * stages);
     if (st != PSYS_OK)
         return st;
+    atomic_int nonfinite = 0;
     for (int i = 0; i < stages; i++) {
         if (i > 0)
             fz[i] = fz[0];
-        fused_bind(&fz[i], sys, i == 0 ? y0 : pass[i - 1].next, NULL, &pass[i]);
+        const double *y = i == 0 ? y0 : pass[i - 1].next;
+        /* y0 NULL: the system's x and v as they are (no copy) */
+        fused_bind(&fz[i], sys, y ? y : sys->x, y ? y + nd : sys->v, NULL, &pass[i], &nonfinite);
     }
     const size_t ring = 9 * psys__springs_ring_stride(s->ring_w);
     /* Stage states in rings (stage_rings): R particles, a multiple of the
@@ -1207,6 +1265,7 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
         }
 #endif
     }
+    answer_finite(sys, pass, stages, &nonfinite);
     *used = true;
     return PSYS_OK;
 }

@@ -599,6 +599,25 @@ static psys_status ode_derivative_chain(void *ctx, double t, const double *y0, i
     return used ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
 }
 
+/* derivative_chain from the system's own x and v, which the sweep only
+ * reads (the solver's result goes to its own vector until commit): no copy
+ * of the state into the solver's y0. Not with the state in the springs'
+ * order, where the solver's vectors and x, v differ in order. */
+static psys_status ode_derivative_chain_current(void *ctx, double t, int stages, const double *c,
+                                                const psys_stage_pass *pass)
+{
+    psys_system *s = ctx;
+    (void)c;
+    if (s->ode_perm || s->n == 0)
+        return PSYS_ERR_UNSUPPORTED;
+    psys_force_eval e;
+    psys__sys_eval(s, t, s->x, s->v, &e);
+    bool used = false;
+    if (psys__fused_chain(s, &e, NULL, stages, pass, &used) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
+    return used ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+}
+
 /* Implicit-solver view: masses (0 for particles the solver must not move). */
 static void ode_mass(void *ctx, double *m)
 {
@@ -634,6 +653,7 @@ psys_ode psys_system_ode(psys_system *s)
     o.derivative = ode_derivative;
     o.derivative_stage = ode_derivative_stage;
     o.derivative_chain = ode_derivative_chain;
+    o.derivative_chain_current = ode_derivative_chain_current;
     o.acceleration = ode_acceleration;
     o.velocity_free = ode_velocity_free;
     o.project = ode_project;
@@ -652,7 +672,8 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
     const bool own = o->ctx == s && o->size == 2 * s->n * (size_t)s->dim && o->get_state == ode_get_state &&
                      o->set_state == ode_set_state && o->derivative == ode_derivative &&
                      o->acceleration == ode_acceleration && o->derivative_stage == ode_derivative_stage &&
-                     o->derivative_chain == ode_derivative_chain && o->project == ode_project;
+                     o->derivative_chain == ode_derivative_chain &&
+                     o->derivative_chain_current == ode_derivative_chain_current && o->project == ode_project;
     if (!own || !solver->cls->elementwise || s->nplanes || s->dist)
         return false;
     const char *env = getenv("PSYS_STATE_ORDER");

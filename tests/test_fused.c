@@ -442,6 +442,33 @@ static psys_status counting_chain(void *ctx, double t, const double *y0, int sta
     return system_chain(ctx, t, y0, stages, c, pass);
 }
 
+/* The same for derivative_chain_current (the chain from the system's state
+ * where it is); chain_current_calls counts the steps it takes. */
+static psys_status (*system_chain_current)(void *ctx, double t, int stages, const double *c,
+                                           const psys_stage_pass *pass);
+static long chain_current_calls;
+static psys_status counting_chain_current(void *ctx, double t, int stages, const double *c,
+                                          const psys_stage_pass *pass)
+{
+    psys_status st = system_chain_current(ctx, t, stages, c, pass);
+    if (st == PSYS_OK) {
+        chain_calls++;
+        chain_current_calls++;
+    }
+    return st;
+}
+
+/* o with its chain callbacks counted; current: derivative_chain_current
+ * kept (else NULL: the solver copies the state for derivative_chain). */
+static void count_chains(psys_ode *o, bool current)
+{
+    system_chain = o->derivative_chain;
+    system_chain_current = o->derivative_chain_current;
+    o->derivative_chain = counting_chain;
+    o->derivative_chain_current = current ? counting_chain_current : NULL;
+    chain_calls = chain_current_calls = 0;
+}
+
 /* A copy of o's state (*size components). */
 static double *ode_state(const psys_ode *o, size_t *size)
 {
@@ -473,7 +500,10 @@ static psys_system *sheet_2d(int nx, int ny)
  * particles, which the chain leaves to the stages. The ropes (3-D, 2-D) and
  * the 2-D sheet are long enough for the stage states to go through rings
  * (spring_fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
- * the sheet. */
+ * the sheet. The chain reads the step's start from the system's own x and
+ * v (derivative_chain_current), or from the solver's copy where that
+ * callback is dropped (where it declines, the state in the springs' order:
+ * state_order_same_bits). */
 static void chain_same_bits(void)
 {
     static const char *const solvers[] = {"midpoint", "rk4"};
@@ -481,18 +511,19 @@ static void chain_same_bits(void)
         for (int kind = 0; kind <= NKINDS + 2; kind++) {
             double *want = NULL;
             size_t size = 0;
-            for (int run = 0; run < 5; run++) { /* 0: stage by stage; 1..4: chain on 1..4 threads */
+            /* 0: stage by stage; 1..4: the chain on 1..4 threads; 5, 6: the
+             * chain from the solver's copy of the state on 1 and 3 threads */
+            for (int run = 0; run < 7; run++) {
                 setenv("PSYS_FUSED", "1", 1);
                 setenv("PSYS_CHAIN", run == 0 ? "0" : "1", 1);
                 psys_system *s = kind == NKINDS       ? rope(30000, 3)
                                  : kind == NKINDS + 1 ? rope(30000, 2)
                                  : kind == NKINDS + 2 ? sheet_2d(100, 160)
                                                       : build(kind);
-                CHECK(psys_system_set_threads(s, run == 0 ? 1 : run) == PSYS_OK);
+                const int threads = run == 0 ? 1 : run <= 4 ? run : run == 5 ? 1 : 3;
+                CHECK(psys_system_set_threads(s, threads) == PSYS_OK);
                 psys_ode o = psys_system_ode(s);
-                system_chain = o.derivative_chain;
-                o.derivative_chain = counting_chain;
-                chain_calls = 0;
+                count_chains(&o, run <= 4);
                 psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
                 CHECK(sv != NULL);
                 for (int step = 0; step < 6; step++) {
@@ -500,14 +531,16 @@ static void chain_same_bits(void)
                     CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
                 }
                 /* muscles (CHAIN_GAPS_2D) depend on the stage time: never chained */
-                CHECK(chain_calls == (run == 0 || kind == CHAIN_GAPS_2D ? 0 : 6));
+                const bool chained = run > 0 && kind != CHAIN_GAPS_2D;
+                CHECK(chain_calls == (chained ? 6 : 0));
+                CHECK(chain_current_calls == (chained && run <= 4 ? 6 : 0));
                 double *got = ode_state(&o, &size);
                 if (run == 0) {
                     want = got;
                 } else {
                     const size_t bad = first_difference(got, want, size);
                     if (bad != size)
-                        fprintf(stderr, "%s, kind %d, %d threads: y[%zu] = %.17g, stage by stage %.17g\n",
+                        fprintf(stderr, "%s, kind %d, run %d: y[%zu] = %.17g, stage by stage %.17g\n",
                                 solvers[k], kind, run, bad, got[bad], want[bad]);
                     CHECK(bad == size);
                     free(got);
@@ -570,9 +603,7 @@ static void chain_timed(void)
         psys_system *s = rope(3000, 3);
         spring(s, 0, 700); /* reach 700 + 512 */
         psys_ode o = psys_system_ode(s);
-        system_chain = o.derivative_chain;
-        o.derivative_chain = counting_chain;
-        chain_calls = 0;
+        count_chains(&o, true);
         psys_solver *sv = psys_solver_create("rk4", &o, NULL);
         CHECK(sv != NULL);
         CHECK(psys__fused_chain_pick(s) == -1);
@@ -928,6 +959,117 @@ static void avx512_switch(void)
     free(keep);
 }
 
+/* The answers of the system's sweeps to psys_stage_pass.finite, counted by
+ * wrappers of derivative_chain and derivative_stage: [0] "not finite", [1]
+ * "finite", [2] none given on a pass that asked. */
+static long finite_answers[3];
+static void count_answer(const psys_stage_pass *pass, int stages)
+{
+    for (int i = 0; i < stages; i++)
+        if (pass[i].finite)
+            finite_answers[*pass[i].finite == -1 ? 2 : *pass[i].finite == 1]++;
+}
+static psys_status answering_chain(void *ctx, double t, const double *y0, int stages, const double *c,
+                                   const psys_stage_pass *pass)
+{
+    psys_status st = system_chain(ctx, t, y0, stages, c, pass);
+    if (y0 && st == PSYS_OK)
+        count_answer(pass, stages);
+    return st;
+}
+static psys_status answering_chain_current(void *ctx, double t, int stages, const double *c,
+                                           const psys_stage_pass *pass)
+{
+    psys_status st = system_chain_current(ctx, t, stages, c, pass);
+    if (st == PSYS_OK)
+        count_answer(pass, stages);
+    return st;
+}
+static psys_status answering_stage(void *ctx, double t, const double *y, const psys_stage_pass *pass)
+{
+    psys_status st = system_stage(ctx, t, y, pass);
+    if (y && st == PSYS_OK)
+        count_answer(pass, 1);
+    return st;
+}
+
+/* A blow-up (rk4 steps far beyond the springs' stability limit) found by
+ * the sweeps' own look at the result as they write it (psys_stage_pass.finite,
+ * which spares the solver a pass over the state) exactly where the
+ * solver's look finds it: the same step, the same first non-finite
+ * component, the state of the step before kept, on every path (the plain
+ * derivative, stage by stage, the chain on 1 to 4 threads, stage states in
+ * rings, a state in the springs' own order). The sweeps must answer
+ * "finite" on every step before and "not finite" on the last; with a
+ * controlled particle (whose projection could change the result) they
+ * must not answer. */
+static void sweeps_find_nonfinite(void)
+{
+    for (int kind = 0; kind < 4; kind++) {
+        size_t want_step = 0, want_bad = 0, size = 0;
+        double *want = NULL;
+        for (int run = 0; run < 6; run++) { /* 0: plain; 1: stage by stage; 2..5: chain on 1..4 threads */
+            setenv("PSYS_FUSED", run == 0 ? "0" : "1", 1);
+            setenv("PSYS_CHAIN", run <= 1 ? "0" : "1", 1);
+            psys_system *s = kind == 0 ? build(SHEET) : kind == 1 ? build(SHEET_SHUFFLED) : rope(30000, 3);
+            if (kind == 3) /* a controlled particle: no chain, and no answer */
+                CHECK(psys_system_control_oscillate(s, 7, (const double[3]){0, 0, 0}, (const double[3]){0, 0, 1},
+                                                    0.1, 3.0, 0) == PSYS_OK);
+            CHECK(psys_system_set_threads(s, run < 2 ? 1 : run - 1) == PSYS_OK);
+            psys_ode o = psys_system_ode(s);
+            system_chain = o.derivative_chain;
+            system_chain_current = o.derivative_chain_current;
+            system_stage = o.derivative_stage;
+            o.derivative_chain = answering_chain;
+            o.derivative_chain_current = answering_chain_current;
+            o.derivative_stage = answering_stage;
+            psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+            CHECK(sv != NULL);
+            memset(finite_answers, 0, sizeof finite_answers);
+            psys_status st = PSYS_OK;
+            size_t step = 0;
+            double *before = NULL;
+            while (st == PSYS_OK && step < 3000) {
+                free(before);
+                before = ode_state(&o, &size);
+                double taken;
+                st = psys_solver_step(sv, kind == 2 ? 0.5 : 2.0, &taken);
+                step++;
+            }
+            CHECK(st == PSYS_ERR_NONFINITE);
+            double *after = ode_state(&o, &size);
+            CHECK(first_difference(after, before, size) == size); /* nothing of the failed step kept */
+            free(after);
+            const size_t bad = psys_solver_bad_component(sv);
+            if (run == 0) {
+                want_step = step;
+                want_bad = bad;
+                want = before;
+                CHECK(finite_answers[0] + finite_answers[1] + finite_answers[2] == 0);
+            } else {
+                CHECK(step == want_step);
+                CHECK(bad == want_bad);
+                CHECK(first_difference(before, want, size) == size);
+                free(before);
+                if (kind == 3) {
+                    CHECK(finite_answers[0] + finite_answers[1] == 0);
+                    CHECK(finite_answers[2] == (long)step);
+                } else {
+                    CHECK(finite_answers[1] == (long)step - 1);
+                    CHECK(finite_answers[0] == 1);
+                    CHECK(finite_answers[2] == 0);
+                }
+            }
+            psys_solver_destroy(sv);
+            psys_system_destroy(s);
+        }
+        CHECK(want_step > 2);
+        free(want);
+    }
+    unsetenv("PSYS_FUSED");
+    unsetenv("PSYS_CHAIN");
+}
+
 static const check_case cases[] = {
     {"derivative_same_bits", derivative_same_bits},
     {"runs_same_bits", runs_same_bits},
@@ -938,6 +1080,7 @@ static const check_case cases[] = {
     {"state_order_same_bits", state_order_same_bits},
     {"state_order_cache", state_order_cache},
     {"avx512_switch", avx512_switch},
+    {"sweeps_find_nonfinite", sweeps_find_nonfinite},
     {NULL, NULL},
 };
 

@@ -399,6 +399,7 @@ static psys_ode counted_ode(counted *c, psys_system *sys)
     o.project = c->inner.project ? w_project : NULL;
     o.derivative_stage = NULL; /* it would bypass w_deriv's count (and take the system as ctx) */
     o.derivative_chain = NULL; /* likewise */
+    o.derivative_chain_current = NULL; /* likewise */
     o.acceleration = NULL;     /* likewise */
     o.velocity_free = NULL;    /* (it takes the system as ctx) */
     return o;

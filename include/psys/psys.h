@@ -78,6 +78,11 @@ typedef struct psys_stage_pass {
     int acc_op;
     double *next;        /**< next stage's state base[j] + h (a k), NULL after the last stage */
     double a;            /**< the next stage's coefficient of this one */
+    /** Optional (NULL: not asked), on the pass that completes acc: the ODE
+     *  may set *finite to 1 when every component it wrote to acc is finite
+     *  and project would change none of them (the solver then skips its own
+     *  pass over the result), or to 0; left as it was when it does not look. */
+    int *finite;
 } psys_stage_pass;
 
 /** A first-order ODE y' = f(t, y) of fixed size, seen by solvers. */
@@ -150,6 +155,16 @@ typedef struct psys_ode {
      *  derivative, as derivative_stage does. */
     psys_status (*derivative_chain)(void *ctx, double t, const double *y0, int stages, const double *c,
                                     const psys_stage_pass *pass);
+    /** Optional (may be NULL): derivative_chain from the current state
+     *  itself (y0 = what get_state would copy; every pass's base is NULL and
+     *  stands for it too), read where it is and left as it is, so the
+     *  solver need not copy it. PSYS_ERR_UNSUPPORTED, with nothing done,
+     *  when it cannot (the solver then copies the state and calls
+     *  derivative_chain). Called only after derivative_chain answered that
+     *  it can take the step. Belongs with ctx and derivative, as
+     *  derivative_chain does. */
+    psys_status (*derivative_chain_current)(void *ctx, double t, int stages, const double *c,
+                                            const psys_stage_pass *pass);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
