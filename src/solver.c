@@ -189,9 +189,7 @@ int psys__solver_threads(const psys_solver *s)
 #endif
 }
 
-/* The first non-finite component of y (whatever the thread count), or
- * SIZE_MAX. */
-static size_t first_nonfinite(const psys_solver *s, const double *y)
+size_t psys__solver_first_nonfinite(const psys_solver *s, const double *y)
 {
     /* Whether any component is not finite: its exponent bits are all set,
      * and only then does adding one to the exponent carry into the sign
@@ -218,7 +216,7 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
     s->y1_finite = false;
     if (s->ode.project)
         s->ode.project(s->ode.ctx, t1, y1);
-    const size_t bad = known ? SIZE_MAX : first_nonfinite(s, y1);
+    const size_t bad = known ? SIZE_MAX : psys__solver_first_nonfinite(s, y1);
     if (bad != SIZE_MAX) {
         s->bad = bad;
         return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);

@@ -32,6 +32,9 @@ struct psys_solver {
      * changes none (psys_stage_pass.finite): commit need not look again.
      * Set just before a successful commit; commit clears it. */
     bool y1_finite;
+    /* The ODE wrote the result into its state itself and the step's start
+     * into y1 (psys_stage_pass.in_place; rk solvers: rk_commit_in_state). */
+    bool y1_in_state;
     psys_error err;
     /* implicit solvers */
     void *impl;               /* solver-kind state (e.g. the sparse matrix) */
@@ -62,6 +65,9 @@ extern const psys__solver_class psys__symplectic_euler, psys__verlet, psys__impl
 int psys__solver_threads(const psys_solver *s);
 /** Project y1 at t1, check it is finite, then set_state(y1) and set_time(t1). */
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);
+/* The first non-finite of the n components of y (whatever the thread
+ * count), or SIZE_MAX. */
+size_t psys__solver_first_nonfinite(const psys_solver *s, const double *y);
 /** Point the solver at another ODE of the same kind but maybe another size
  *  (an MPI domain's local particles after a migration), keeping its
  *  settings and step-size state; the scratch vectors grow only when the new

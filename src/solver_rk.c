@@ -143,7 +143,7 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
          * (the ODE may still be reading stage i's state while it writes
          * stage i + 1's), slots YTMP, K0 + 1, ..., K0 + ns - 2. */
         psys_stage_pass pass[7];
-        int finite = -1;
+        int finite = -1, in_place = -1;
         for (int i = 0, seen = 0; i < ns; i++) {
             double *next = i + 1 < ns ? s->buf[i == 0 ? YTMP : K0 + i] : NULL;
             pass[i] = chain_pass(tab, i, h, NULL, y1, next, nw, seen, last, &finite);
@@ -151,9 +151,14 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
                 seen++;
         }
         psys_status st = PSYS_ERR_UNSUPPORTED;
-        if (s->ode.derivative_chain_current && !*loaded)
+        if (s->ode.derivative_chain_current && !*loaded) {
+            /* the result straight into the state where no later stage reads the start */
+            pass[last].in_place = last == ns - 1 ? &in_place : NULL;
             st = s->ode.derivative_chain_current(s->ode.ctx, t, ns, tab->c, pass);
+            pass[last].in_place = NULL;
+        }
         if (st == PSYS_ERR_UNSUPPORTED) {
+            in_place = -1;
             if (!*loaded)
                 s->ode.get_state(s->ode.ctx, y0);
             *loaded = true;
@@ -163,6 +168,7 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
         }
         if (st == PSYS_OK) {
             s->y1_finite = finite == 1;
+            s->y1_in_state = in_place == 1;
             return PSYS_OK;
         }
         if (st == PSYS_ERR_UNSUPPORTED) /* it accepted the step: declining now is a fault, not a fallback */
@@ -287,6 +293,28 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
     return PSYS_OK;
 }
 
+/* psys__solver_commit where the ODE wrote the step's result into its state
+ * itself and the start into y1 (psys_stage_pass.in_place, where project
+ * changes none of the result): the state kept, or y1 put back when the
+ * result is not finite, scanned through y0 unless the stages looked. */
+static psys_status rk_commit_in_state(psys_solver *s, double *y0, const double *y1, double t1)
+{
+    const bool known = s->y1_finite;
+    s->y1_finite = s->y1_in_state = false;
+    size_t bad = SIZE_MAX;
+    if (!known) {
+        s->ode.get_state(s->ode.ctx, y0);
+        bad = psys__solver_first_nonfinite(s, y0);
+    }
+    if (bad != SIZE_MAX) {
+        s->ode.set_state(s->ode.ctx, y1); /* nothing of the refused step kept */
+        s->bad = bad;
+        return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);
+    }
+    s->ode.set_time(s->ode.ctx, t1);
+    return PSYS_OK;
+}
+
 static psys_status rk_fixed_step(psys_solver *s, double h, double *h_taken)
 {
     double *y0 = s->buf[Y0], *y1 = s->buf[Y1];
@@ -299,7 +327,7 @@ static psys_status rk_fixed_step(psys_solver *s, double h, double *h_taken)
         st = rk_stages(s, s->cls->tab, t, h, y0, y1);
     }
     if (st == PSYS_OK)
-        st = psys__solver_commit(s, y1, t + h);
+        st = s->y1_in_state ? rk_commit_in_state(s, y0, y1, t + h) : psys__solver_commit(s, y1, t + h);
     *h_taken = h;
     return st;
 }

@@ -72,6 +72,8 @@ typedef struct fused {
     const psys_stage_pass *pass;           /* or the solver's work on ydot */
     const double *base[2];                 /* the pass's base, x and v halves (the system's own x, v where
                                               the chain reads them in place: psys__fused_chain) */
+    double *put[2];                        /* those x, v, where this last pass writes the result there and
+                                              the start into acc (psys_stage_pass.in_place), or NULL */
     atomic_int *nonfinite;                 /* set when a pass asked to (.finite) wrote a non-finite acc */
     size_t nd;
     /* The chain's stage states of particles [zlo, zhi) in rings of R
@@ -267,15 +269,52 @@ static FUSED_INLINE uint64_t nonfinite_bits(const double *restrict a, size_t m)
     return any;
 }
 
+/* The last pass's work in place (psys_stage_pass.in_place): the result of
+ * acc_op 2, 3 or 4 into the state at put, which holds the step's start,
+ * and that start into acc; nonfinite_bits of the result where the pass
+ * asks. The same expressions as stage_apply's. */
+static FUSED_INLINE uint64_t stage_apply_in_place(const psys_stage_pass *p, double *restrict put,
+                                                  double *restrict acc, const double *restrict k, size_t m)
+{
+    const double h = p->h, w = p->w;
+    switch (p->acc_op) {
+    case 2:
+        for (size_t j = 0; j < m; j++) {
+            const double b = put[j];
+            put[j] = b + h * (w * k[j]);
+            acc[j] = b;
+        }
+        break;
+    case 3:
+        for (size_t j = 0; j < m; j++) {
+            const double b = put[j];
+            put[j] = b + h * (0.0 + w * k[j]);
+            acc[j] = b;
+        }
+        break;
+    default:
+        for (size_t j = 0; j < m; j++) {
+            const double b = put[j];
+            put[j] = b + h * (acc[j] + w * k[j]);
+            acc[j] = b;
+        }
+        break;
+    }
+    return p->finite ? nonfinite_bits(put, m) : 0;
+}
+
 /* The solver's work (psys_stage_pass) on derivative components [off, off + m)
  * with values k and the step's start at base (not always p->base + off:
- * fused.base): the expressions of rk_chain_stages, element by element.
+ * fused.base): the expressions of rk_chain_stages, element by element; or,
+ * with put (the same place as base, writable), stage_apply_in_place.
  * Returns nonfinite_bits of what it wrote to acc where the pass asks
  * (.finite), read back while still in cache: the solver then need not pass
  * over the whole result again. */
 static FUSED_INLINE uint64_t stage_apply(const psys_stage_pass *p, const double *restrict base, size_t off,
-                                         const double *restrict k, size_t m, double *restrict nx)
+                                         const double *restrict k, size_t m, double *restrict nx, double *put)
 {
+    if (put) /* the last pass (nx NULL) with acc_op 2..4: base is put */
+        return stage_apply_in_place(p, put, p->acc + off, k, m);
     const double h = p->h, w = p->w, an = p->a;
     if (nx) {
         for (size_t j = 0; j < m; j++)
@@ -384,9 +423,10 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
                     fz->vdot[pd + (size_t)q] = k[q];
                 }
             } else {
-                bits |= stage_apply(fz->pass, fz->base[0] + pd, pd, fz->v + pd, (size_t)d,
-                                    next_at(fz, 0, p, d)); /* x' = v */
-                bits |= stage_apply(fz->pass, fz->base[1] + pd, fz->nd + pd, k, (size_t)d, next_at(fz, 1, p, d));
+                bits |= stage_apply(fz->pass, fz->base[0] + pd, pd, fz->v + pd, (size_t)d, next_at(fz, 0, p, d),
+                                    fz->put[0] ? fz->put[0] + pd : NULL); /* x' = v */
+                bits |= stage_apply(fz->pass, fz->base[1] + pd, fz->nd + pd, k, (size_t)d, next_at(fz, 1, p, d),
+                                    fz->put[1] ? fz->put[1] + pd : NULL);
             }
         }
     }
@@ -411,13 +451,14 @@ static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_
         return;
     }
     uint64_t bits = stage_apply(fz->pass, fz->base[0] + ad, ad, state_at(fz, 1, a, d), cnt * (size_t)d,
-                                next_at(fz, 0, a, d)); /* x' = v */
+                                next_at(fz, 0, a, d), fz->put[0] ? fz->put[0] + ad : NULL); /* x' = v */
     double k[3 * SPRING_BLOCK];
     for (size_t j = 0; j < cnt; j += SPRING_BLOCK) {
         const size_t m = cnt - j < SPRING_BLOCK ? cnt - j : SPRING_BLOCK;
         accel(fz->inv_mass + a + j, F[0] + j, F[1] + j, d == 3 ? F[2] + j : NULL, m, k, d);
         const size_t o = ad + j * (size_t)d;
-        bits |= stage_apply(fz->pass, fz->base[1] + o, fz->nd + o, k, m * (size_t)d, next_at(fz, 1, a + j, d));
+        bits |= stage_apply(fz->pass, fz->base[1] + o, fz->nd + o, k, m * (size_t)d, next_at(fz, 1, a + j, d),
+                            fz->put[1] ? fz->put[1] + o : NULL);
     }
     note_nonfinite(fz, bits);
 }
@@ -914,6 +955,7 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *x, const
     fz->base[0] = pass && pass->base ? pass->base : sys->x;
     fz->base[1] = pass && pass->base ? pass->base + nd : sys->v;
     fz->nonfinite = nonfinite;
+    fz->put[0] = fz->put[1] = NULL;
     fz->nd = nd;
     fz->in_ring = NULL;
     fz->out_ring = NULL;
@@ -1216,6 +1258,17 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
         /* y0 NULL: the system's x and v as they are (no copy) */
         fused_bind(&fz[i], sys, y ? y : sys->x, y ? y + nd : sys->v, NULL, &pass[i], &nonfinite);
     }
+    /* The last pass's result straight into x and v, the start into acc
+     * (psys_stage_pass.in_place), where the start is read there (y0 NULL)
+     * and nothing is projected. Every stage reads a particle's start before
+     * the last stage leaves it (that needs their states around it), on any
+     * thread, so no read of the start comes after its write. */
+    const psys_stage_pass *fin = &pass[stages - 1];
+    const bool in_place = !y0 && fin->in_place && fin->acc && !fin->next && fin->acc_op >= 2 && sys->nctrl == 0;
+    if (in_place) {
+        fz[stages - 1].put[0] = sys->x;
+        fz[stages - 1].put[1] = sys->v;
+    }
     const size_t ring = 9 * psys__springs_ring_stride(s->ring_w);
     /* Stage states in rings (stage_rings): R particles, a multiple of the
      * window's, each thread its own; only where its sweep is long enough
@@ -1266,6 +1319,8 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
 #endif
     }
     answer_finite(sys, pass, stages, &nonfinite);
+    if (in_place)
+        *fin->in_place = 1;
     *used = true;
     return PSYS_OK;
 }

@@ -961,13 +961,17 @@ static void avx512_switch(void)
 
 /* The answers of the system's sweeps to psys_stage_pass.finite, counted by
  * wrappers of derivative_chain and derivative_stage: [0] "not finite", [1]
- * "finite", [2] none given on a pass that asked. */
-static long finite_answers[3];
+ * "finite", [2] none given on a pass that asked; and the steps whose
+ * result went straight into the state (psys_stage_pass.in_place). */
+static long finite_answers[3], in_place_steps;
 static void count_answer(const psys_stage_pass *pass, int stages)
 {
-    for (int i = 0; i < stages; i++)
+    for (int i = 0; i < stages; i++) {
         if (pass[i].finite)
             finite_answers[*pass[i].finite == -1 ? 2 : *pass[i].finite == 1]++;
+        if (pass[i].in_place && *pass[i].in_place == 1)
+            in_place_steps++;
+    }
 }
 static psys_status answering_chain(void *ctx, double t, const double *y0, int stages, const double *c,
                                    const psys_stage_pass *pass)
@@ -999,10 +1003,12 @@ static psys_status answering_stage(void *ctx, double t, const double *y, const p
  * solver's look finds it: the same step, the same first non-finite
  * component, the state of the step before kept, on every path (the plain
  * derivative, stage by stage, the chain on 1 to 4 threads, stage states in
- * rings, a state in the springs' own order). The sweeps must answer
- * "finite" on every step before and "not finite" on the last; with a
- * controlled particle (whose projection could change the result) they
- * must not answer. */
+ * rings, the springs' internal order). The sweeps must answer "finite" on
+ * every step before and "not finite" on the last; with a controlled
+ * particle (whose projection could change the result) they must not
+ * answer. The chain writes every step's result straight into the state
+ * (psys_stage_pass.in_place), the failed one too, which the solver then
+ * undoes. */
 static void sweeps_find_nonfinite(void)
 {
     for (int kind = 0; kind < 4; kind++) {
@@ -1026,6 +1032,7 @@ static void sweeps_find_nonfinite(void)
             psys_solver *sv = psys_solver_create("rk4", &o, NULL);
             CHECK(sv != NULL);
             memset(finite_answers, 0, sizeof finite_answers);
+            in_place_steps = 0;
             psys_status st = PSYS_OK;
             size_t step = 0;
             double *before = NULL;
@@ -1051,6 +1058,7 @@ static void sweeps_find_nonfinite(void)
                 CHECK(bad == want_bad);
                 CHECK(first_difference(before, want, size) == size);
                 free(before);
+                CHECK(in_place_steps == (run >= 2 && kind != 3 ? (long)step : 0));
                 if (kind == 3) {
                     CHECK(finite_answers[0] + finite_answers[1] == 0);
                     CHECK(finite_answers[2] == (long)step);

@@ -83,6 +83,14 @@ typedef struct psys_stage_pass {
      *  and project would change none of them (the solver then skips its own
      *  pass over the result), or to 0; left as it was when it does not look. */
     int *finite;
+    /** Optional (NULL: not offered), only with derivative_chain_current, on
+     *  its last pass: the ODE may write the step's result into its current
+     *  state itself and the step's start into acc instead (the two swapped),
+     *  setting *in_place to 1, and only when project would change none of
+     *  the result. The solver then keeps the state as the step's result, or
+     *  puts acc back (set_state) when it refuses the result; no copy of the
+     *  result into the state. */
+    int *in_place;
 } psys_stage_pass;
 
 /** A first-order ODE y' = f(t, y) of fixed size, seen by solvers. */
