@@ -75,15 +75,20 @@ static psys_status drag_save(const psys_system *sys, const void *data, cJSON *ar
 /* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
 SPRING_CLONES
 static void drag_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
-                      double *const *F)
+                      double *const *F, bool first)
 {
     (void)mass;
     const double kd = ((const drag *)data)->kd;
     for (int c = 0; c < dim; c++) {
         const double *restrict v = V[c];
         double *restrict fc = F[c];
-        for (size_t j = 0; j < count; j++)
-            fc[j] -= kd * v[j];
+        if (first) {
+            for (size_t j = 0; j < count; j++)
+                fc[j] = 0.0 - kd * v[j];
+        } else {
+            for (size_t j = 0; j < count; j++)
+                fc[j] -= kd * v[j];
+        }
     }
 }
 

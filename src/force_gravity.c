@@ -101,7 +101,7 @@ static psys_status gravity_save(const psys_system *sys, const void *data, cJSON 
 /* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
 SPRING_CLONES
 static void gravity_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
-                         double *const *F)
+                         double *const *F, bool first)
 {
     (void)V;
     const gravity *gr = data;
@@ -109,8 +109,13 @@ static void gravity_rows(const void *data, int dim, size_t count, const double *
         const double gc = gr->g[c];
         const double *restrict m = mass;
         double *restrict fc = F[c];
-        for (size_t j = 0; j < count; j++)
-            fc[j] += m[j] * gc;
+        if (first) {
+            for (size_t j = 0; j < count; j++)
+                fc[j] = 0.0 + m[j] * gc;
+        } else {
+            for (size_t j = 0; j < count; j++)
+                fc[j] += m[j] * gc;
+        }
     }
 }
 

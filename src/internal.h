@@ -353,9 +353,11 @@ typedef struct psys__force_io {
     psys_status (*save)(const psys_system *sys, const void *data, struct cJSON *arr);
     /** Optional, for forces on each particle alone: cls->apply's operations
      *  for `count` consecutive particles with masses mass[j], velocities
-     *  V[c][j] and forces F[c][j] in component rows (the fused derivative). */
+     *  V[c][j] and forces F[c][j] in component rows (the fused derivative).
+     *  first: F is not cleared yet, and gets 0.0 + this force's term (the
+     *  bits of clearing it and adding), one pass over F fewer. */
     void (*apply_rows)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
-                       double *const *F);
+                       double *const *F, bool first);
 } psys__force_io;
 
 extern const psys__force_io psys__gravity_io;

@@ -56,7 +56,7 @@
 #endif
 
 typedef void (*rows_fn)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
-                        double *const *F);
+                        double *const *F, bool first);
 
 typedef struct rowforce {
     rows_fn fn;
@@ -218,7 +218,7 @@ static FUSED_INLINE void enter_perm(const fused *fz, double *rb, size_t a, size_
             }
         }
         for (int k = 0; k < fz->npre; k++)
-            fz->pre[k].fn(fz->pre[k].data, d, c, m, (const double *const *)V, F);
+            fz->pre[k].fn(fz->pre[k].data, d, c, m, (const double *const *)V, F, false);
     }
 }
 
@@ -248,10 +248,12 @@ static FUSED_INLINE void enter_rows(const fused *fz, double *rb, size_t a, size_
             }
         }
     }
-    for (int c = 0; c < d; c++)
-        memset(F[c], 0, cnt * sizeof(double)); /* all-zero bits: +0.0 */
+    /* the first force before the springs clears F as it adds (first) */
+    if (fz->npre == 0)
+        for (int c = 0; c < d; c++)
+            memset(F[c], 0, cnt * sizeof(double)); /* all-zero bits: +0.0 */
     for (int k = 0; k < fz->npre; k++)
-        fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
+        fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F, k == 0);
 }
 
 /* Bit 63 set when one of a[0..m) is not finite: its exponent bits are all
@@ -394,7 +396,7 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
         for (size_t j = 0; j < c && fz->npost; j++)
             m[j] = fz->mass[fz->perm[a + j0 + j]];
         for (int q = 0; q < fz->npost; q++)
-            fz->post[q].fn(fz->post[q].data, d, c, m, (const double *const *)V, F);
+            fz->post[q].fn(fz->post[q].data, d, c, m, (const double *const *)V, F, false);
         for (size_t j = 0; j < c; j++) {
             const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
             if (j + PERM_AHEAD < c) { /* the particles come from all over memory */
@@ -443,7 +445,7 @@ static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_
     rows_at(rb, fz->S, 1, d, i0, V);
     rows_at(rb, fz->S, 2, d, i0, F);
     for (int k = 0; k < fz->npost; k++)
-        fz->post[k].fn(fz->post[k].data, d, cnt, fz->mass + a, (const double *const *)V, F);
+        fz->post[k].fn(fz->post[k].data, d, cnt, fz->mass + a, (const double *const *)V, F, false);
     const size_t ad = a * (size_t)d;
     if (!fz->pass) {
         memcpy(fz->xdot + ad, fz->v + ad, cnt * (size_t)d * sizeof(double));
