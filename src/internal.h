@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdint.h>
+#include <string.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -236,6 +237,17 @@ double psys__drag_kd(const void *data);
 /** A pair force's particles were replaced (not just moved): rebuild its lists
  *  and forget its cached forces at the next evaluation (force_pair.c). */
 void psys__pair_invalidate(void *data);
+
+/** Bit 63 set when x is not finite: its exponent bits are all set, and
+ *  only then does adding one to the exponent carry into the sign bit. OR
+ *  it over many values: AND, ADD and OR vectorize, a branch per value does
+ *  not (the solver's check of a step's result, and the fused sweep's). */
+static inline uint64_t psys__nonfinite_bit(double x)
+{
+    uint64_t u;
+    memcpy(&u, &x, sizeof u);
+    return (u & 0x7ff0000000000000u) + 0x0010000000000000u;
+}
 
 /* ---- spring set internals (force_spring.c) ---- */
 /** The damped spring law's magnitude over |l|: with len2 = |l|², dot = l̇·l,

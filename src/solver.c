@@ -191,18 +191,11 @@ int psys__solver_threads(const psys_solver *s)
 
 size_t psys__solver_first_nonfinite(const psys_solver *s, const double *y)
 {
-    /* Whether any component is not finite: its exponent bits are all set,
-     * and only then does adding one to the exponent carry into the sign
-     * bit. AND, ADD and OR vectorize; a branch per component does not. */
     const int nt = psys__solver_threads(s);
-    const uint64_t expo = 0x7ff0000000000000u, one = 0x0010000000000000u;
     uint64_t any = 0;
     PSYS_OMP(omp parallel for schedule(static) num_threads(nt) if (nt > 1 && s->n >= PSYS_PAR_MIN) reduction(|: any))
-    for (size_t i = 0; i < s->n; i++) {
-        uint64_t u;
-        memcpy(&u, &y[i], sizeof u);
-        any |= (u & expo) + one;
-    }
+    for (size_t i = 0; i < s->n; i++)
+        any |= psys__nonfinite_bit(y[i]);
     if (any >> 63)
         for (size_t i = 0; i < s->n; i++)
             if (!isfinite(y[i]))

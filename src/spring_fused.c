@@ -256,18 +256,12 @@ static FUSED_INLINE void enter_rows(const fused *fz, double *rb, size_t a, size_
         fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F, k == 0);
 }
 
-/* Bit 63 set when one of a[0..m) is not finite: its exponent bits are all
- * set, and only then does adding one to the exponent carry into the sign
- * bit (AND, ADD and OR vectorize; a branch per component does not). */
+/* Bit 63 set when one of a[0..m) is not finite (psys__nonfinite_bit). */
 static FUSED_INLINE uint64_t nonfinite_bits(const double *restrict a, size_t m)
 {
-    const uint64_t expo = 0x7ff0000000000000u, one = 0x0010000000000000u;
     uint64_t any = 0;
-    for (size_t j = 0; j < m; j++) {
-        uint64_t u;
-        memcpy(&u, &a[j], sizeof u);
-        any |= (u & expo) + one;
-    }
+    for (size_t j = 0; j < m; j++)
+        any |= psys__nonfinite_bit(a[j]);
     return any;
 }
 
