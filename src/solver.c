@@ -203,6 +203,12 @@ size_t psys__solver_first_nonfinite(const psys_solver *s, const double *y)
     return SIZE_MAX;
 }
 
+psys_status psys__solver_nonfinite(psys_solver *s, size_t bad)
+{
+    s->bad = bad;
+    return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);
+}
+
 psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
 {
     const bool known = s->y1_finite; /* the stages looked already */
@@ -210,10 +216,8 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1)
     if (s->ode.project)
         s->ode.project(s->ode.ctx, t1, y1);
     const size_t bad = known ? SIZE_MAX : psys__solver_first_nonfinite(s, y1);
-    if (bad != SIZE_MAX) {
-        s->bad = bad;
-        return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);
-    }
+    if (bad != SIZE_MAX)
+        return psys__solver_nonfinite(s, bad);
     s->ode.set_state(s->ode.ctx, y1);
     s->ode.set_time(s->ode.ctx, t1);
     return PSYS_OK;

@@ -68,6 +68,8 @@ psys_status psys__solver_commit(psys_solver *s, double *y1, double t1);
 /* The first non-finite of the n components of y (whatever the thread
  * count), or SIZE_MAX. */
 size_t psys__solver_first_nonfinite(const psys_solver *s, const double *y);
+/* PSYS_ERR_NONFINITE for state component bad (psys_solver_bad_component). */
+psys_status psys__solver_nonfinite(psys_solver *s, size_t bad);
 /** Point the solver at another ODE of the same kind but maybe another size
  *  (an MPI domain's local particles after a migration), keeping its
  *  settings and step-size state; the scratch vectors grow only when the new

@@ -308,8 +308,7 @@ static psys_status rk_commit_in_state(psys_solver *s, double *y0, const double *
     }
     if (bad != SIZE_MAX) {
         s->ode.set_state(s->ode.ctx, y1); /* nothing of the refused step kept */
-        s->bad = bad;
-        return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", bad);
+        return psys__solver_nonfinite(s, bad);
     }
     s->ode.set_time(s->ode.ctx, t1);
     return PSYS_OK;
@@ -388,11 +387,9 @@ static psys_status rk_adaptive_step(psys_solver *s, double h_max, double *h_take
         s->rejected++;
         h_prop = h * (isfinite(err) ? factor : 0.1);
         if (h_prop <= 1e-14 * fmax(1.0, fabs(t))) {
-            for (size_t i = 0; i < s->n; i++)
-                if (!isfinite(y1[i])) {
-                    s->bad = i;
-                    return psys__fail(&s->err, PSYS_ERR_NONFINITE, "state component %zu became non-finite", i);
-                }
+            const size_t bad = psys__solver_first_nonfinite(s, y1);
+            if (bad != SIZE_MAX)
+                return psys__solver_nonfinite(s, bad);
             return psys__fail(&s->err, PSYS_ERR_INVALID,
                               "rk45 step size fell to %g at t = %.17g without meeting the tolerance", h_prop, t);
         }

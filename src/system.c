@@ -581,6 +581,18 @@ static psys_status ode_derivative_stage(void *ctx, double t, const double *y, co
     return fused ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
 }
 
+/* The chain sweep of a step from y0, or from the system's own x and v
+ * (y0 NULL: psys__fused_chain). */
+static psys_status chain_from(psys_system *s, double t, const double *y0, int stages, const psys_stage_pass *pass)
+{
+    psys_force_eval e;
+    psys__sys_eval(s, t, y0 ? y0 : s->x, y0 ? y0 + s->n * (size_t)s->dim : s->v, &e);
+    bool used = false;
+    if (psys__fused_chain(s, &e, y0, stages, pass, &used) != PSYS_OK)
+        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
+    return used ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+}
+
 /* All stages of a chain step at once, where the fused derivative takes the
  * system and nothing depends on the stage time: no controlled particles
  * (project), no muscles (rest lengths of t). */
@@ -591,18 +603,14 @@ static psys_status ode_derivative_chain(void *ctx, double t, const double *y0, i
     (void)c; /* the forces the chain takes do not depend on time */
     if (!y0)
         return psys__fused_chain_eligible(s, stages) ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
-    psys_force_eval e;
-    psys__sys_eval(s, t, y0, y0 + s->n * (size_t)s->dim, &e);
-    bool used = false;
-    if (psys__fused_chain(s, &e, y0, stages, pass, &used) != PSYS_OK)
-        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
-    return used ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+    return chain_from(s, t, y0, stages, pass);
 }
 
-/* derivative_chain from the system's own x and v, which the sweep only
- * reads (the solver's result goes to its own vector until commit): no copy
- * of the state into the solver's y0. Not with the state in the springs'
- * order, where the solver's vectors and x, v differ in order. */
+/* derivative_chain from the system's own x and v: no copy of the state
+ * into the solver's y0, and the result written back into x and v where the
+ * solver offers it (psys_stage_pass.in_place), no copy out either. Not with
+ * the state in the springs' order, where the solver's vectors and x, v
+ * differ in order. */
 static psys_status ode_derivative_chain_current(void *ctx, double t, int stages, const double *c,
                                                 const psys_stage_pass *pass)
 {
@@ -610,12 +618,7 @@ static psys_status ode_derivative_chain_current(void *ctx, double t, int stages,
     (void)c;
     if (s->ode_perm || s->n == 0)
         return PSYS_ERR_UNSUPPORTED;
-    psys_force_eval e;
-    psys__sys_eval(s, t, s->x, s->v, &e);
-    bool used = false;
-    if (psys__fused_chain(s, &e, NULL, stages, pass, &used) != PSYS_OK)
-        return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory preparing the springs");
-    return used ? PSYS_OK : PSYS_ERR_UNSUPPORTED;
+    return chain_from(s, t, NULL, stages, pass);
 }
 
 /* Implicit-solver view: masses (0 for particles the solver must not move). */
