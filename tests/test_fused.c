@@ -1048,6 +1048,9 @@ static void sweeps_find_nonfinite(void)
             CHECK(first_difference(after, before, size) == size); /* nothing of the failed step kept */
             free(after);
             const size_t bad = psys_solver_bad_component(sv);
+            char msg[64]; /* the same report from the sweep's check as from the solver's */
+            snprintf(msg, sizeof msg, "state component %zu became non-finite", bad);
+            CHECK(strcmp(psys_solver_last_error(sv), msg) == 0);
             if (run == 0) {
                 want_step = step;
                 want_bad = bad;

@@ -734,6 +734,12 @@ static void nonfinite_particle_force(void)
             fprintf(stderr, "  solver %s: bad component %zu, expected %zu\n", name, psys_solver_bad_component(s),
                     want);
         CHECK(psys_solver_bad_component(s) == want);
+        /* every solver's report, rk45's give-up included (psys__solver_nonfinite) */
+        char msg[64];
+        snprintf(msg, sizeof msg, "state component %zu became non-finite", want);
+        if (strcmp(psys_solver_last_error(s), msg) != 0)
+            fprintf(stderr, "  solver %s: \"%s\"\n", name, psys_solver_last_error(s));
+        CHECK(strcmp(psys_solver_last_error(s), msg) == 0);
         CHECK(psys_system_particle_of_component(sys, psys_solver_bad_component(s)) == 1);
         CHECK(memcmp(x0, psys_system_positions(sys), sizeof x0) == 0);
         CHECK(memcmp(v0, psys_system_velocities(sys), sizeof v0) == 0);
