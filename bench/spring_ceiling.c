@@ -4,7 +4,7 @@
  *
  *   spring_ceiling [N] [STEPS]
  *
- * Prints two JSON lines:
+ * Prints these JSON lines:
  * - "divider": ns per correctly rounded square root and per division, at
  *   the widest vector width the compiler uses here (each spring of psys
  *   takes one of each: |l| and 1/|l|), measured on a 1,024-element array
@@ -20,11 +20,19 @@
  *   particle is pinned (work psys must do is left out, none added). ns per
  *   particle-step (STEPS steps, 1,000), split into the derivative and the
  *   stage sums.
- * - "ideal-cloth-fused" (AVX-512 hosts, N² a multiple of 8): the same cloth
+ * - "ideal-cloth-fused" (AVX-512 hosts, N > 8 so that the long offsets' far
+ *   ends lie in later chunks, N² a multiple of 8): the same cloth
  *   with each stage's sums done in the spring loop, chunk by chunk, and the
  *   short offsets' far ends kept in registers: one pass over memory per
- *   stage. Its check (a middle particle's height) must match ideal-cloth's
- *   to 1e-9 relative, or the program exits with status 1.
+ *   stage. Its check: every particle's height must match ideal-cloth's to
+ *   1e-9 relative, or the program exits with status 1 ("check" in the
+ *   lines: a middle particle's height).
+ * - "ideal-cloth-fused-partner" (the same hosts and sizes): the fused loop
+ *   with each particle's spring forces added in an order that does not
+ *   depend on the chunk size: its lower partners in ascending index, then
+ *   its upper partners in descending index (the order a sweep of any
+ *   granularity can keep; bench/README.md, "What cloth-100 needs"). The
+ *   same check.
  *
  * CEILING_RSQRT=1 in the environment: the AVX-512 spring law takes 1/|l|
  * from the hardware's 14-bit reciprocal square root and two Newton steps
@@ -35,6 +43,7 @@
  *
  * Same compiler flags as the library (no FMA, no fast math). */
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -217,10 +226,14 @@ __attribute__((target("avx512f"))) static void derivative512(cloth *c)
  * next chunk. One pass over memory per stage. State buffers: in (the
  * stage's input), out (its output), base (the step's start), acc (the
  * weighted sum); the last stage writes base + h·(acc + w·k) into out. */
-__attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *const *in, double *const *out,
-                                                               double *const *base, double *const *acc, double ha,
-                                                               double w, int which)
+__attribute__((target("avx512f"), always_inline)) static inline void
+fused_stage512_o(cloth *c, double *const *in, double *const *out, double *const *base, double *const *acc, double ha,
+                 double w, int which, const bool partner)
 {
+    /* partner: the near kinds (2, 1), then the far ones by descending
+     * offset (2N, N + 1, N, N − 1) */
+    static const int order[2][KINDS] = {{0, 1, 2, 3, 4, 5}, {4, 0, 5, 2, 1, 3}};
+    __m512d G[KINDS][3];
     const __m512d drag = _mm512_set1_pd(0.01), zero = _mm512_setzero_pd();
     const __m512d grav[3] = {zero, _mm512_set1_pd(-9.81), zero};
     const __m512d H = _mm512_set1_pd(ha), W = _mm512_set1_pd(w);
@@ -235,13 +248,17 @@ __attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *
             a[d] = _mm512_load_pd(F[d] + p); /* the long offsets' far ends, from earlier chunks */
             _mm512_store_pd(F[d] + p, zero);
         }
-        for (int k = 0; k < KINDS; k++) {
+        for (int i = 0; i < KINDS; i++) {
+            const int k = order[partner][i];
             const size_t q = p + c->off[k];
             __m512d e[3];
             const __m512d mag = spring8(xa, va, in, in + 3, q, c->rest[k] + p, e);
             for (int d = 0; d < 3; d++) {
                 const __m512d gd = _mm512_mul_pd(mag, e[d]);
-                a[d] = _mm512_sub_pd(a[d], gd);
+                if (partner && c->off[k] <= 2)
+                    G[k][d] = gd; /* its first ends after every second end */
+                else
+                    a[d] = _mm512_sub_pd(a[d], gd);
                 if (c->off[k] == 1) {
                     a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
                                                    _mm512_castpd_si512(gd), _mm512_castpd_si512(prev1[d]), 7)));
@@ -255,6 +272,9 @@ __attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *
                 }
             }
         }
+        for (int i = 0; partner && i < 2; i++)
+            for (int d = 0; d < 3; d++)
+                a[d] = _mm512_sub_pd(a[d], G[order[1][i]][d]);
         for (int d = 0; d < 3; d++) {
             const __m512d kx = va[d];
             const __m512d kv = _mm512_sub_pd(_mm512_add_pd(a[d], grav[d]), _mm512_mul_pd(drag, va[d]));
@@ -272,6 +292,22 @@ __attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *
             }
         }
     }
+}
+
+/* fused_stage512_o in the ideal loop's own order of additions, or (partner)
+ * in the partner order: each particle's second ends (lower partners) by
+ * ascending partner, then its first ends by descending partner. In a chunk
+ * the near kinds' forces (offsets 1, 2) wait in registers until the far
+ * kinds' first ends are in; the far ends go to memory by descending offset,
+ * so a later chunk reads them in ascending partner order. */
+__attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *const *in, double *const *out,
+                                                               double *const *base, double *const *acc, double ha,
+                                                               double w, int which, bool partner)
+{
+    if (partner)
+        fused_stage512_o(c, in, out, base, acc, ha, w, which, true);
+    else
+        fused_stage512_o(c, in, out, base, acc, ha, w, which, false);
 }
 #endif
 
@@ -399,39 +435,49 @@ int main(int argc, char **argv)
            n, c.np, steps, width, strcmp(width, "avx512f") == 0 ? law : "sqrt-div", (t_der + t_stage) * per,
            t_der * per, t_stage * per, c.x[1][c.np / 2]);
 #ifdef HAVE512
-    if (__builtin_cpu_supports("avx512f") && c.np % CHUNK == 0) {
-        /* the fused variant from the same start: 3 state buffers of 6 rows */
+    if (__builtin_cpu_supports("avx512f") && c.np % CHUNK == 0 && n > 8) {
+        /* the fused variants from the same start: 3 state buffers of 6 rows */
         double *buf[3][6];
         for (int b = 0; b < 3; b++)
-            for (int q = 0; q < 6; q++) {
+            for (int q = 0; q < 6; q++)
                 buf[b][q] = column(cap);
-                for (size_t i = 0; i < cap; i++)
-                    buf[b][q][i] = q == 0 ? s * (double)(i % n) : q == 2 ? s * (double)(i / n) : 0.0;
+        for (int partner = 0; partner < 2; partner++) {
+            for (int b = 0; b < 3; b++)
+                for (int q = 0; q < 6; q++)
+                    for (size_t i = 0; i < cap; i++)
+                        buf[b][q][i] = q == 0 ? s * (double)(i % n) : q == 2 ? s * (double)(i / n) : 0.0;
+            for (int q = 0; q < 3; q++)
+                memset(c.f[q], 0, cap * sizeof(double));
+            double **st = buf[0], **s1 = buf[1], **s2 = buf[2];
+            const double t0 = now();
+            for (int t = 0; t < steps; t++) {
+                fused_stage512(&c, st, s1, st, c.acc, h * a[0], w[0], 0, partner);
+                fused_stage512(&c, s1, s2, st, c.acc, h * a[1], w[1], 1, partner);
+                fused_stage512(&c, s2, s1, st, c.acc, h * a[2], w[2], 2, partner);
+                fused_stage512(&c, s1, s2, st, c.acc, h, w[3], 3, partner);
+                double **tmp = st;
+                st = s2;
+                s2 = tmp;
             }
-        for (int q = 0; q < 3; q++)
-            memset(c.f[q], 0, cap * sizeof(double));
-        double **st = buf[0], **s1 = buf[1], **s2 = buf[2];
-        const double t0 = now();
-        for (int t = 0; t < steps; t++) {
-            fused_stage512(&c, st, s1, st, c.acc, h * a[0], w[0], 0);
-            fused_stage512(&c, s1, s2, st, c.acc, h * a[1], w[1], 1);
-            fused_stage512(&c, s2, s1, st, c.acc, h * a[2], w[2], 2);
-            fused_stage512(&c, s1, s2, st, c.acc, h, w[3], 3);
-            double **tmp = st;
-            st = s2;
-            s2 = tmp;
+            const double t = now() - t0;
+            /* the loops sum each force in other orders: every particle's
+             * height agrees to rounding, or one of them is wrong (the
+             * program then fails); the springs act within reach of the
+             * fixed anchors past the sheet, so only all heights see them */
+            for (size_t i = 0; i < c.np; i++) {
+                const double h1 = c.x[1][i], h2 = st[1][i];
+                if (!(fabs(h2 - h1) <= 1e-9 * fabs(h1) + 1e-15)) {
+                    fprintf(stderr, "spring_ceiling: %s: particle %zu's height %.17g differs from %.17g\n",
+                            partner ? "partner" : "fused", i, h2, h1);
+                    status = 1;
+                    break;
+                }
+            }
+            printf("{\"case\":\"%s\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,\"law\":\"%s\","
+                   "\"ns_per_particle_step\":%.2f,\"check\":%.9g}\n",
+                   partner ? "ideal-cloth-fused-partner" : "ideal-cloth-fused", n, c.np, steps, law, t * per,
+                   st[1][c.np / 2]);
         }
-        const double t = now() - t0;
-        /* the two loops sum each force in another order: heights agree to
-         * rounding, or one of them is wrong (the program then fails) */
-        const double h1 = c.x[1][c.np / 2], h2 = st[1][c.np / 2];
-        if (!(fabs(h2 - h1) <= 1e-9 * fabs(h1) + 1e-15)) {
-            fprintf(stderr, "spring_ceiling: the fused loop's check %.17g differs from %.17g\n", h2, h1);
-            status = 1;
-        }
-        printf("{\"case\":\"ideal-cloth-fused\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,\"law\":\"%s\","
-               "\"ns_per_particle_step\":%.2f,\"check\":%.9g}\n",
-               n, c.np, steps, law, t * per, st[1][c.np / 2]);
     }
 #endif
     for (int i = 0; i < ncolumns; i++)
