@@ -146,43 +146,140 @@ static inline double plane_distance(const psys__plane *pl, const double *x, int 
     return s;
 }
 
+/* A plane's constants for contact_law, copied out of it (so that stores
+ * to forces cannot alias them). */
+typedef struct contact_plane {
+    double p[3], n[3], forward[3];
+    double kf, kb; /* friction, and backward friction where it differs (else friction again) */
+} contact_plane;
+
+static inline contact_plane contact_plane_of(const psys__plane *pl)
+{
+    contact_plane q;
+    for (int c = 0; c < 3; c++) {
+        q.p[c] = pl->p[c];
+        q.n[c] = pl->n[c];
+        q.forward[c] = pl->forward[c];
+    }
+    q.kf = pl->friction;
+    q.kb = pl->backward_friction != pl->friction ? pl->backward_friction : pl->friction;
+    return q;
+}
+
+/* Plane q's contact force (notes §7.3) on a particle at x with velocity v,
+ * into its total applied force f, where it is free (is_free): within
+ * PSYS_CONTACT_DISTANCE of the plane, slower than PSYS_CONTACT_SPEED
+ * along its normal and pushed into it (f·n < 0), the normal part of f is
+ * cancelled and friction opposes the tangential velocity (stick: f = 0,
+ * the tangential part held by the surface). The tests are selections, not
+ * branches, so loops over particles vectorise; a NaN passes each test (as
+ * it passed the branches this replaced), so it reaches f. d is a constant
+ * where inlined. */
+static inline __attribute__((always_inline)) void contact_law(const contact_plane *q, const double *x,
+                                                               const double *v, double *f, int is_free,
+                                                               const bool stick, const int d)
+{
+    double dist = 0, vn = 0, fn = 0, along = 0; /* along: v_t·forward = v·forward, forward in the plane */
+    for (int c = 0; c < d; c++) {
+        dist += (x[c] - q->p[c]) * q->n[c];
+        vn += v[c] * q->n[c];
+        fn += f[c] * q->n[c];
+        along += v[c] * q->forward[c];
+    }
+    /* & rather than &&: every test made, no branch */
+    const int on = is_free & !(dist > PSYS_CONTACT_DISTANCE) & !(fabs(vn) > PSYS_CONTACT_SPEED) & !(fn >= 0);
+    const double kf = along < 0 ? q->kb : q->kf;
+    for (int c = 0; c < d; c++) {
+        const double vt = v[c] - vn * q->n[c], g = f[c] + (-fn * q->n[c] - kf * (-fn) * vt);
+        f[c] = on ? (stick ? 0.0 : g) : f[c];
+    }
+}
+
+/* psys__contact_forces for one plane with d and stick constants. */
+static inline __attribute__((always_inline)) void contact_plane_forces(const psys_system *s, const psys__plane *pl,
+                                                                        const double *x, const double *v, double *f,
+                                                                        const bool stick, const int d)
+{
+    const contact_plane q = contact_plane_of(pl);
+    for (size_t i = 0; i < s->n; i++)
+        contact_law(&q, x + i * d, v + i * d, f + i * d, !(s->flags[i] & PSYS_PARTICLE_NOT_FREE), stick, d);
+}
+
 void psys__contact_forces(const psys_system *s, const double *x, const double *v, double *f)
 {
-    int d = s->dim;
     for (size_t k = 0; k < s->nplanes; k++) {
         const psys__plane *pl = &s->planes[k];
-        for (size_t i = 0; i < s->n; i++) {
-            if (s->flags[i] & PSYS_PARTICLE_NOT_FREE)
-                continue;
-            const double *xi = x + i * d, *vi = v + i * d;
-            double *fi = f + i * d;
-            if (plane_distance(pl, xi, d) > PSYS_CONTACT_DISTANCE)
-                continue;
-            double vn = dot_d(vi, pl->n, d);
-            if (fabs(vn) > PSYS_CONTACT_SPEED)
-                continue;
-            double fn = dot_d(fi, pl->n, d);
-            if (fn >= 0)
-                continue; /* pulled away: contact breaks */
-            if (pl->stick) {
-                for (int c = 0; c < d; c++)
-                    fi[c] = 0; /* normal part cancelled, tangential part held by the surface */
-                continue;
-            }
-            double kf = pl->friction;
-            if (pl->backward_friction != pl->friction) {
-                double along = 0; /* v_t·forward = v·forward, forward being in the plane */
-                for (int c = 0; c < d; c++)
-                    along += vi[c] * pl->forward[c];
-                if (along < 0)
-                    kf = pl->backward_friction;
-            }
-            for (int c = 0; c < d; c++) {
-                double vt = vi[c] - vn * pl->n[c];
-                fi[c] += -fn * pl->n[c] - kf * (-fn) * vt;
+        if (s->dim == 3)
+            pl->stick ? contact_plane_forces(s, pl, x, v, f, true, 3) : contact_plane_forces(s, pl, x, v, f, false, 3);
+        else
+            pl->stick ? contact_plane_forces(s, pl, x, v, f, true, 2) : contact_plane_forces(s, pl, x, v, f, false, 2);
+    }
+}
+
+/* contact_law of plane pl on rows X, V, F at j0 + j, j < cnt, free_[j]
+ * saying which particles are free; d and stick constants. */
+static inline __attribute__((always_inline)) void contact_plane_rows(const psys__plane *pl,
+                                                                      const long long *restrict free_, size_t j0,
+                                                                      size_t cnt, const double *const *X,
+                                                                      const double *const *V, double *const *F,
+                                                                      const bool stick, const int d)
+{
+    const contact_plane q = contact_plane_of(pl);
+    const double *restrict x0 = X[0] + j0, *restrict x1 = X[1] + j0, *restrict x2 = X[d - 1] + j0;
+    const double *restrict v0 = V[0] + j0, *restrict v1 = V[1] + j0, *restrict v2 = V[d - 1] + j0;
+    double *restrict f0 = F[0] + j0, *restrict f1 = F[1] + j0, *restrict f2 = F[d - 1] + j0;
+    /* the rows are distinct and each j stands alone; GCC honours restrict
+     * only on parameters, so it is told directly */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC ivdep
+#endif
+    for (size_t j = 0; j < cnt; j++) {
+        const double x[3] = {x0[j], x1[j], x2[j]}, v[3] = {v0[j], v1[j], v2[j]};
+        double f[3] = {f0[j], f1[j], f2[j]};
+        contact_law(&q, x, v, f, free_[j] != 0, stick, d);
+        f0[j] = f[0];
+        f1[j] = f[1];
+        if (d == 3)
+            f2[j] = f[2];
+    }
+}
+
+/* Every plane in turn, as psys__contact_forces takes them. */
+PSYS_CLONES
+static void contact_rows_clones(const psys_system *s, const uint32_t *perm, size_t a, size_t cnt,
+                                const double *const *X, const double *const *V, double *const *F)
+{
+    /* in pieces of 256: which particles are free, as 64-bit numbers the
+     * vector loop reads beside the doubles (a byte gather does not
+     * vectorise) */
+    long long free_[256];
+    for (size_t j0 = 0; j0 < cnt; j0 += 256) {
+        const size_t c = cnt - j0 < 256 ? cnt - j0 : 256;
+        for (size_t j = 0; j < c; j++) {
+            const size_t i = perm ? perm[a + j0 + j] : a + j0 + j;
+            free_[j] = !(s->flags[i] & PSYS_PARTICLE_NOT_FREE);
+        }
+        for (size_t k = 0; k < s->nplanes; k++) {
+            const psys__plane *pl = &s->planes[k];
+            /* d and stick as constants: a loop each */
+            if (s->dim == 3) {
+                if (pl->stick)
+                    contact_plane_rows(pl, free_, j0, c, X, V, F, true, 3);
+                else
+                    contact_plane_rows(pl, free_, j0, c, X, V, F, false, 3);
+            } else if (pl->stick) {
+                contact_plane_rows(pl, free_, j0, c, X, V, F, true, 2);
+            } else {
+                contact_plane_rows(pl, free_, j0, c, X, V, F, false, 2);
             }
         }
     }
+}
+
+void psys__contact_rows(const psys_system *s, const uint32_t *perm, size_t a, size_t cnt, const double *const *X,
+                        const double *const *V, double *const *F)
+{
+    contact_rows_clones(s, perm, a, cnt, X, V, F);
 }
 
 /* One step of exactly h (adaptive solvers may need several). */

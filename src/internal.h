@@ -217,6 +217,12 @@ void psys__controller_free(psys__controller *c);
 size_t psys__controller_find(const psys_system *sys, size_t i);
 /** Contact forces and friction of planes into f at state (x, v). */
 void psys__contact_forces(const psys_system *sys, const double *x, const double *v, double *f);
+/** The same contact forces on particles perm[a + j] (perm NULL: a + j),
+ *  j < cnt, whose components sit in rows X, V, F at j (the fused
+ *  derivative's window): per particle the same operations in the same
+ *  order, so the same bits. */
+void psys__contact_rows(const psys_system *sys, const uint32_t *perm, size_t a, size_t cnt, const double *const *X,
+                        const double *const *V, double *const *F);
 /** Make sure collision scratch space fits the particles (called when growing). */
 psys_status psys__planes_reserve(psys_system *sys);
 

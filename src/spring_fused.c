@@ -84,6 +84,8 @@ typedef struct fused {
     double *out_ring;
     size_t rmask, rd, zlo, zhi;
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
+    const psys_system *planes; /* the system, where it has planes: their contact forces after the post
+                                  forces (psys__contact_rows), or NULL */
     bool forced; /* PSYS_FUSED=1: small sets threaded too (read once per evaluation) */
     bool k512;   /* the AVX-512 run loops (run_pair_512, run_near_512); PSYS_SPRING_PLAIN=1: the
                     compiler's loops (tests, benchmarks) */
@@ -109,11 +111,16 @@ static rows_fn rows_of(const psys_force_class *cls)
 
 /* Whether the fused path computes s's derivative: springs, and otherwise
  * only forces with row kernels (at most FUSED_MAX_ROWS on each side of the
- * springs); no planes (their contact forces need the total force first), no
+ * springs), then the planes' contact forces, which need each particle's
+ * total force (psys__contact_rows, as a particle leaves the window); no
  * MPI decomposition. */
 static bool eligible(const psys_system *s, fused *fz)
 {
-    if (!s->springs || psys__springs_count(s->springs) == 0 || s->nplanes || s->dist || s->own_mark || s->n == 0)
+    if (!s->springs || psys__springs_count(s->springs) == 0 || s->dist || s->own_mark || s->n == 0)
+        return false;
+    /* the planes take particles by their own index (psys__state_order_begin
+     * declines systems with planes, so this does not happen) */
+    if (s->nplanes && s->ode_perm)
         return false;
     const char *force = getenv("PSYS_FUSED");
     if (force && force[0] == '0')
@@ -391,6 +398,12 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
             m[j] = fz->mass[fz->perm[a + j0 + j]];
         for (int q = 0; q < fz->npost; q++)
             fz->post[q].fn(fz->post[q].data, d, c, m, (const double *const *)V, F, false);
+        if (fz->planes) {
+            double *X[3];
+            rows_at(rb, fz->S, 0, d, i0, X);
+            psys__contact_rows(fz->planes, fz->perm, a + j0, c, (const double *const *)X, (const double *const *)V,
+                               F);
+        }
         for (size_t j = 0; j < c; j++) {
             const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
             if (j + PERM_AHEAD < c) { /* the particles come from all over memory */
@@ -440,6 +453,11 @@ static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_
     rows_at(rb, fz->S, 2, d, i0, F);
     for (int k = 0; k < fz->npost; k++)
         fz->post[k].fn(fz->post[k].data, d, cnt, fz->mass + a, (const double *const *)V, F, false);
+    if (fz->planes) {
+        double *X[3];
+        rows_at(rb, fz->S, 0, d, i0, X);
+        psys__contact_rows(fz->planes, NULL, a, cnt, (const double *const *)X, (const double *const *)V, F);
+    }
     const size_t ad = a * (size_t)d;
     if (!fz->pass) {
         memcpy(fz->xdot + ad, fz->v + ad, cnt * (size_t)d * sizeof(double));
@@ -956,6 +974,7 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *x, const
     fz->in_ring = NULL;
     fz->out_ring = NULL;
     fz->rmask = fz->rd = fz->zlo = fz->zhi = 0;
+    fz->planes = sys->nplanes ? sys : NULL;
 }
 
 /* Answers the passes that asked (psys_stage_pass.finite) once their sweeps

@@ -1,13 +1,13 @@
 # The fused derivative (src/spring_fused.c): the same bits as the generic one.
-psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path chain_same_bits chain_timed shuffled_same_physics
+psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path planes_same_bits chain_same_bits chain_timed shuffled_same_physics
   state_order_same_bits
   state_order_cache
   avx512_switch
   sweeps_find_nonfinite)
 # The determinism checks again with the fused derivative forced (it then
 # also runs small spring sets on several threads), and with it off (the
-# generic path, which systems with planes, pair forces, mouse springs and
-# the like take): the committed hashes of the examples and the thread-count
+# generic path, which systems with pair forces, mouse springs and the like
+# take): the committed hashes of the examples and the thread-count
 # runs. And both again with the compiler's run loops instead of the
 # AVX-512 ones where the CPU has AVX-512 (PSYS_SPRING_PLAIN=1; elsewhere
 # the same runs again).
@@ -35,7 +35,7 @@ foreach(case thread_counts thread_counts_parallel_paths round_trip_runs)
   set_tests_properties(test_determinism.chain.${case} PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")
 endforeach()
 # The fused tests with the compiler's run loops (PSYS_SPRING_PLAIN=1).
-foreach(case derivative_same_bits runs_same_bits chain_same_bits sweeps_find_nonfinite)
+foreach(case derivative_same_bits runs_same_bits planes_same_bits chain_same_bits sweeps_find_nonfinite)
   add_test(NAME test_fused.plain_spring.${case} COMMAND test_fused ${case})
   set_tests_properties(test_fused.plain_spring.${case} PROPERTIES ENVIRONMENT "PSYS_SPRING_PLAIN=1")
 endforeach()

@@ -3,7 +3,9 @@
  *   cloth-N      the N×N sheet of ../shared/peers/ref_cloth.c (2 m × 2 m, 1 kg,
  *                structural + shear + bend springs, two corners pinned,
  *                gravity, drag), N = 100, 256, 1024 (any N from 2 to 4096 by name), dt = 1/sqrt(17.6 ks N²);
- *                cloth-N-shuffled: the same with its particles numbered at random
+ *                cloth-N-shuffled: the same with its particles numbered at random;
+ *                cloth-N-floor: the same lying on a floor (a plane through it,
+ *                friction 0.5): contact forces in every evaluation
  *   rope-1000000 a rope of 10⁶ particles (structural springs), top end pinned
  *   lj-melt      the LAMMPS LJ melt, 32,000 atoms, grid pair force, verlet
  *   nbody-4096   4096 bodies, softened gravity, direct pair sums, verlet
@@ -92,11 +94,17 @@ static int evals_per_step(const char *integrator)
     return strcmp(integrator, "rk4") == 0 ? 4 : strcmp(integrator, "verlet") == 0 || strcmp(integrator, "midpoint") == 0 ? 2 : 1;
 }
 
-/* The cloth-N sheet; with `shuffled`, its particles numbered in a random
+/* Variants of the cloth-N sheet (cloth_size). */
+enum { CLOTH_PLAIN, CLOTH_SHUFFLED, CLOTH_FLOOR };
+
+/* The cloth-N sheet; CLOTH_SHUFFLED: its particles numbered in a random
  * order (a fixed Fisher–Yates shuffle: the same on every machine), as a
- * mesh exported by a tool that does not keep rows together comes. */
-static psys_system *build_cloth(int n, bool shuffled)
+ * mesh exported by a tool that does not keep rows together comes;
+ * CLOTH_FLOOR: lying on a floor, the plane y = 2 through it (friction 0.5),
+ * so that every free particle rests in contact. */
+static psys_system *build_cloth(int n, int variant)
 {
+    const bool shuffled = variant == CLOTH_SHUFFLED;
     const size_t np = (size_t)n * (size_t)n;
     psys_system *sys = psys_system_create(3, NULL);
     size_t *id = malloc(np * sizeof *id), *cell = malloc(np * sizeof *cell); /* cell -> particle -> cell */
@@ -138,6 +146,13 @@ static psys_system *build_cloth(int n, bool shuffled)
         || psys_system_set_fixed(sys, id[(size_t)n - 1], true) != PSYS_OK || psys_system_add_gravity(sys, g) != PSYS_OK
         || psys_system_add_drag(sys, 0.05 * m) != PSYS_OK)
         goto fail;
+    if (variant == CLOTH_FLOOR) {
+        psys_plane_def floor = psys_plane_def_default(); /* normal +y */
+        floor.point[1] = 2.0;
+        floor.friction = 0.5;
+        if (psys_system_add_plane(sys, &floor) != PSYS_OK)
+            goto fail;
+    }
     free(id);
     free(cell);
     return sys;
@@ -357,26 +372,29 @@ done:
     return rc;
 }
 
-/* N of a case named cloth-N or cloth-N-shuffled, 2 ≤ N ≤ 4096 (the
- * suite's sizes are 100, 256 and 1024; others find where paths cross
- * over), else 0; *shuffled tells which. */
-static int cloth_size(const char *name, bool *shuffled)
+/* N of a case named cloth-N, cloth-N-shuffled or cloth-N-floor, 2 ≤ N ≤
+ * 4096 (the suite's sizes are 100, 256 and 1024; others find where paths
+ * cross over), else 0; *variant tells which. */
+static int cloth_size(const char *name, int *variant)
 {
     if (strncmp(name, "cloth-", 6) != 0 || !isdigit((unsigned char)name[6]))
         return 0;
     char *end;
     long n = strtol(name + 6, &end, 10);
-    *shuffled = strcmp(end, "-shuffled") == 0;
-    return (*end == '\0' || *shuffled) && n >= 2 && n <= 4096 ? (int)n : 0;
+    *variant = *end == '\0' ? CLOTH_PLAIN
+               : strcmp(end, "-shuffled") == 0 ? CLOTH_SHUFFLED
+               : strcmp(end, "-floor") == 0    ? CLOTH_FLOOR
+                                               : -1;
+    return *variant >= 0 && n >= 2 && n <= 4096 ? (int)n : 0;
 }
 
 static int run_case(const char *name, const bench_opts *o)
 {
     const char *integ = o->integrator;
-    bool shuffled;
-    const int n = cloth_size(name, &shuffled);
+    int variant;
+    const int n = cloth_size(name, &variant);
     if (n > 0)
-        return bench_system(name, build_cloth(n, shuffled), integ ? integ : "rk4",
+        return bench_system(name, build_cloth(n, variant), integ ? integ : "rk4",
                             1.0 / sqrt(17.6 * 100.0 * (double)n * n), o);
     if (strcmp(name, "rope-1000000") == 0) {
         double dt = 0;
@@ -447,20 +465,20 @@ int cmd_bench(int argc, char **argv)
             return EXIT_BAD_INPUT;
         }
     }
-    bool shuffled;
-    bool known = !which || cloth_size(which, &shuffled) > 0;
+    int variant;
+    bool known = !which || cloth_size(which, &variant) > 0;
     for (int k = 0; which && case_names[k]; k++)
         known |= strcmp(which, case_names[k]) == 0;
     if (!known) {
         cli_error("bench: unknown case \"%s\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, "
-                  "nbody-4096; cloth-N and cloth-N-shuffled for N in 2..4096)",
+                  "nbody-4096; cloth-N, cloth-N-shuffled and cloth-N-floor for N in 2..4096)",
                   which);
         return EXIT_BAD_INPUT;
     }
     if (o.gbs < 0)
         o.gbs = triad_gbs();
     int rc = EXIT_OK;
-    if (which && cloth_size(which, &shuffled) > 0)
+    if (which && cloth_size(which, &variant) > 0)
         return run_case(which, &o);
     for (int k = 0; case_names[k]; k++) {
         if (which && strcmp(which, case_names[k]) != 0)

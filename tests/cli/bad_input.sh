@@ -393,10 +393,16 @@ check "bench cloth-8-shuffled runs the 8x8 sheet" \
     grep -q '"case":"cloth-8-shuffled","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
 # the fixed shuffle scatters the same springs' ends (random pairs of 64: about 21 apart)
 check "bench cloth-8-shuffled numbers the sheet at random" grep -q '"mean_spring_index_gap":20.6}$' out.txt
-for name in cloth-1 cloth-4097 cloth-8x cloth- cloth--8 cloth-8-shuffledx cloth-shuffled cloth-1-shuffled; do
+# cloth-N-floor: the same sheet lying on a floor through it (every particle in contact)
+psys bench cloth-8-floor --steps 1 --reps 1 --bandwidth 1
+expect_rc 0 "bench cloth-8-floor"
+check "bench cloth-8-floor runs the 8x8 sheet" \
+    grep -q '"case":"cloth-8-floor","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
+for name in cloth-1 cloth-4097 cloth-8x cloth- cloth--8 cloth-8-shuffledx cloth-shuffled cloth-1-shuffled \
+    cloth-8-floorx cloth-floor cloth-1-floor cloth-8-floor-shuffled; do
     psys bench "$name" --steps 1 --reps 1 --bandwidth 1
     expect_rc 2 "bench $name"
-    expect_stderr "psys: bench: unknown case \"$name\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, nbody-4096; cloth-N and cloth-N-shuffled for N in 2..4096)" "bench $name"
+    expect_stderr "psys: bench: unknown case \"$name\" (cases: cloth-100, cloth-256, cloth-1024, rope-1000000, lj-melt, nbody-4096; cloth-N, cloth-N-shuffled and cloth-N-floor for N in 2..4096)" "bench $name"
     expect_stdout_empty "bench $name"
 done
 
