@@ -7,6 +7,7 @@
 #include "../src/internal.h"
 #include "../src/springs.h"
 
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -255,6 +256,21 @@ static size_t first_difference(const double *got, const double *want, size_t siz
     return size;
 }
 
+/* Whether got and want are the same bits; if not, says where they first
+ * differ, after the label (a printf format and its arguments). */
+static bool same_bits(const double *got, const double *want, size_t size, const char *fmt, ...)
+{
+    const size_t bad = first_difference(got, want, size);
+    if (bad == size)
+        return true;
+    va_list ap;
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, ": [%zu] = %.17g, expected %.17g\n", bad, got[bad], want[bad]);
+    return false;
+}
+
 static void derivative_same_bits(void)
 {
     for (int kind = 0; kind < NKINDS; kind++) {
@@ -265,11 +281,7 @@ static void derivative_same_bits(void)
         double *want = generic_derivative(s, y);
         for (int threads = 1; threads <= 3; threads++) {
             double *got = fused_derivative(s, y, threads);
-            const size_t bad = first_difference(got, want, o.size);
-            if (bad != o.size)
-                fprintf(stderr, "kind %d, %d threads: ydot[%zu] = %.17g, generic %.17g\n", kind, threads, bad,
-                        got[bad], want[bad]);
-            CHECK(bad == o.size);
+            CHECK(same_bits(got, want, o.size, "kind %d, %d threads, ydot against the generic path", kind, threads));
             free(got);
         }
         /* and the forces are not trivially zero: the comparison means something */
@@ -543,11 +555,8 @@ static void chain_same_bits(void)
                 if (run == 0) {
                     want = got;
                 } else {
-                    const size_t bad = first_difference(got, want, size);
-                    if (bad != size)
-                        fprintf(stderr, "%s, kind %d, run %d: y[%zu] = %.17g, stage by stage %.17g\n",
-                                solvers[k], kind, run, bad, got[bad], want[bad]);
-                    CHECK(bad == size);
+                    CHECK(same_bits(got, want, size, "%s, kind %d, run %d, y against stage by stage", solvers[k], kind,
+                                    run));
                     free(got);
                 }
                 psys_solver_destroy(sv);
@@ -725,11 +734,8 @@ static void state_order_same_bits(void)
                 if (run == 0) {
                     want = got;
                 } else {
-                    const size_t bad = first_difference(got, want, size);
-                    if (bad != size)
-                        fprintf(stderr, "%s, variant %d, %d threads: y[%zu] = %.17g, particles' order %.17g\n",
-                                solvers[k], variant, run, bad, got[bad], want[bad]);
-                    CHECK(bad == size);
+                    CHECK(same_bits(got, want, size, "%s, variant %d, %d threads, y against the particles' order",
+                                    solvers[k], variant, run));
                     free(got);
                 }
                 psys_solver_destroy(sv);
@@ -860,10 +866,7 @@ static double *changes_run(bool ordered)
 static void state_order_cache(void)
 {
     double *want = changes_run(false), *got = changes_run(true);
-    const size_t size = 6 * (70 * 45 + 1), bad = first_difference(got, want, size);
-    if (bad != size)
-        fprintf(stderr, "after changes: y[%zu] = %.17g, particles' order %.17g\n", bad, got[bad], want[bad]);
-    CHECK(bad == size);
+    CHECK(same_bits(got, want, 6 * (70 * 45 + 1), "after changes, y against the particles' order"));
     free(want);
     free(got);
 
@@ -991,11 +994,8 @@ static void planes_same_bits(void)
         CHECK(dim == 3 ? held == n - 60 : held >= 60);
         for (int threads = 1; threads <= 3; threads++) {
             double *got = fused_derivative(s, y, threads);
-            const size_t bad = first_difference(got, want, o.size);
-            if (bad != o.size)
-                fprintf(stderr, "%d-D%s, %d threads: ydot[%zu] = %.17g, generic %.17g\n", dim,
-                        shuffle ? " shuffled" : "", threads, bad, got[bad], want[bad]);
-            CHECK(bad == o.size);
+            CHECK(same_bits(got, want, o.size, "%d-D%s, %d threads, ydot against the generic path", dim,
+                            shuffle ? " shuffled" : "", threads));
             free(got);
         }
         free(want);
@@ -1022,11 +1022,8 @@ static void planes_same_bits(void)
                 /* the falling row hit the ground and bounced (restitution 0.5) */
                 CHECK(dim == 2 || got[size / 2 + probe * 3 + 2] > 0.3);
             } else {
-                const size_t bad = first_difference(got, first, size);
-                if (bad != size)
-                    fprintf(stderr, "%d-D%s, run %d: y[%zu] = %.17g, generic %.17g\n", dim, shuffle ? " shuffled" : "",
-                            run, bad, got[bad], first[bad]);
-                CHECK(bad == size);
+                CHECK(same_bits(got, first, size, "%d-D%s, run %d, y against the generic path", dim,
+                                shuffle ? " shuffled" : "", run));
                 free(got);
             }
             psys_solver_destroy(sv);

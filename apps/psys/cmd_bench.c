@@ -331,9 +331,9 @@ static int bench_system(const char *name, psys_system *sys, const char *integrat
         double med = per[reps / 2];
         size_t np = psys_system_count(sys), ns = psys_system_spring_count(sys);
         double nsp = med * 1e9 / (double)np, fb = floor_bytes(integrator, (double)ns / (double)np);
-        printf("{\"case\":\"%s\",\"integrator\":\"%s\",\"n\":%zu,\"particles\":%zu,\"springs\":%zu,\"steps\":%lld,"
-               "\"steps_per_rep\":%lld,\"reps\":%d,\"threads\":%d,\"ns_per_particle_step\":%.2f,",
-               name, integrator, np, np, ns, batch * reps, batch, reps, o->threads, nsp);
+        printf("{\"case\":\"%s\",\"integrator\":\"%s\",\"n\":%zu,\"particles\":%zu,\"springs\":%zu,\"planes\":%zu,"
+               "\"steps\":%lld,\"steps_per_rep\":%lld,\"reps\":%d,\"threads\":%d,\"ns_per_particle_step\":%.2f,",
+               name, integrator, np, np, ns, psys_system_plane_count(sys), batch * reps, batch, reps, o->threads, nsp);
         if (ns)
             printf("\"ns_per_spring_eval\":%.3f,", med * 1e9 / ((double)ns * evals_per_step(integrator)));
         else

@@ -384,7 +384,8 @@ expect_stderr 'psys: --save needs a value (see psys --help)' "check --save witho
 # psys bench cloth-N: any N in 2..4096 runs that sheet; other names are unknown cases
 psys bench cloth-8 --steps 1 --reps 1 --bandwidth 1
 expect_rc 0 "bench cloth-8"
-check "bench cloth-8 runs the 8x8 sheet" grep -q '"case":"cloth-8","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
+check "bench cloth-8 runs the 8x8 sheet" \
+    grep -q '"case":"cloth-8","integrator":"rk4","n":64,"particles":64,"springs":306,"planes":0,' out.txt
 # rows of 8: springs 1, 2, 7, 8, 9 and 16 apart, 2152 in all over 306 springs
 check "bench cloth-8 numbers the sheet by rows" grep -q '"mean_spring_index_gap":7.0}$' out.txt
 psys bench cloth-8-shuffled --steps 1 --reps 1 --bandwidth 1
@@ -397,7 +398,7 @@ check "bench cloth-8-shuffled numbers the sheet at random" grep -q '"mean_spring
 psys bench cloth-8-floor --steps 1 --reps 1 --bandwidth 1
 expect_rc 0 "bench cloth-8-floor"
 check "bench cloth-8-floor runs the 8x8 sheet" \
-    grep -q '"case":"cloth-8-floor","integrator":"rk4","n":64,"particles":64,"springs":306,' out.txt
+    grep -q '"case":"cloth-8-floor","integrator":"rk4","n":64,"particles":64,"springs":306,"planes":1,' out.txt
 for name in cloth-1 cloth-4097 cloth-8x cloth- cloth--8 cloth-8-shuffledx cloth-shuffled cloth-1-shuffled \
     cloth-8-floorx cloth-floor cloth-1-floor cloth-8-floor-shuffled; do
     psys bench "$name" --steps 1 --reps 1 --bandwidth 1
