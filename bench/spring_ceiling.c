@@ -33,6 +33,15 @@
  *   its upper partners in descending index (the order a sweep of any
  *   granularity can keep; bench/README.md, "What cloth-100 needs"). The
  *   same check.
+ * - "ideal-cloth-fused-psys-like" (the same hosts and sizes): the partner
+ *   loop with the work psys's fused derivative adds: the solver's
+ *   interleaved [x | v] state copied into a structure-of-arrays window as
+ *   particles enter it (the largest offset ahead of the chunk), each
+ *   entering particle's force set to m·g − drag·v there, a lane mask per
+ *   chunk and kind of spring loaded and applied (all lanes set, so the same
+ *   cloth and the same check), f times a per-particle inverse mass, and the
+ *   stage sums on the interleaved layout. What a chunk-major sweep inside
+ *   psys could reach at best (bench/README.md, "What cloth-100 needs").
  *
  * CEILING_RSQRT=1 in the environment: the AVX-512 spring law takes 1/|l|
  * from the hardware's 14-bit reciprocal square root and two Newton steps
@@ -44,6 +53,7 @@
  * Same compiler flags as the library (no FMA, no fast math). */
 #include <math.h>
 #include <stdbool.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -309,6 +319,132 @@ __attribute__((target("avx512f"))) static void fused_stage512(cloth *c, double *
     else
         fused_stage512_o(c, in, out, base, acc, ha, w, which, false);
 }
+
+/* Eight particles' x (or v) from the solver's interleaved layout (x0 y0 z0
+ * x1 ...: three vectors from p3) into one vector per component. */
+__attribute__((target("avx512f"))) static inline void deinterleave8(const double *p3, __m512d out[3])
+{
+    const __m512d a = _mm512_loadu_pd(p3), b = _mm512_loadu_pd(p3 + 8), c = _mm512_loadu_pd(p3 + 16);
+    static const long long lo[3][8] = {{0, 3, 6, 9, 12, 15, 0, 0}, {1, 4, 7, 10, 13, 0, 0, 0}, {2, 5, 8, 11, 14, 0, 0, 0}};
+    static const long long hi[3][8] = {{0, 0, 0, 0, 0, 0, 2, 5}, {0, 0, 0, 0, 0, 0, 3, 6}, {0, 0, 0, 0, 0, 1, 4, 7}};
+    static const __mmask8 hm[3] = {0xC0, 0xE0, 0xE0};
+    for (int d = 0; d < 3; d++) {
+        const __m512d t = _mm512_permutex2var_pd(a, _mm512_loadu_si512(lo[d]), b);
+        out[d] = _mm512_mask_permutexvar_pd(t, hm[d], _mm512_loadu_si512(hi[d]), c);
+    }
+}
+
+/* The inverse of deinterleave8: three component vectors into the
+ * interleaved layout (three vectors, in order). */
+__attribute__((target("avx512f"))) static inline void interleave8(const __m512d in[3], __m512d out[3])
+{
+    /* from x, y (indices 0-7, 8-15), then z into the remaining lanes */
+    static const long long xy[3][8] = {
+        {0, 8, 0, 1, 9, 0, 2, 10}, {0, 3, 11, 0, 4, 12, 0, 5}, {13, 0, 6, 14, 0, 7, 15, 0}};
+    static const long long zz[3][8] = {{0, 0, 0, 0, 0, 1, 0, 0}, {2, 0, 0, 3, 0, 0, 4, 0}, {0, 5, 0, 0, 6, 0, 0, 7}};
+    static const __mmask8 zm[3] = {0x24, 0x49, 0x92};
+    for (int r = 0; r < 3; r++) {
+        const __m512d t = _mm512_permutex2var_pd(in[0], _mm512_loadu_si512(xy[r]), in[1]);
+        out[r] = _mm512_mask_permutexvar_pd(t, zm[r], _mm512_loadu_si512(zz[r]), in[2]);
+    }
+}
+
+/* The partner-order fused loop with the work psys adds (the "psys-like"
+ * line): the solver's interleaved state ([x | v], x0 y0 z0 x1 ...) read as
+ * particles enter a structure-of-arrays window max_off ahead of the chunk,
+ * each entering particle's f set to m·g − drag·v there (psys's forces
+ * listed before the springs), a mask per chunk and kind of spring loaded
+ * and applied (all lanes set: the same cloth as the other loops, so the
+ * same check), f times a per-particle inverse mass, and the stage sums on
+ * the interleaved layout. in, out, base, acc: [x | v] of cap particles. */
+__attribute__((target("avx512f"))) static void fused_stage512_aos(cloth *c, const double *in, double *out,
+                                                                   const double *base, double *acc, double ha,
+                                                                   double w, int which, const double *mass,
+                                                                   const double *im, const uint8_t *mask)
+{
+    static const int order[KINDS] = {4, 0, 5, 2, 1, 3};
+    __m512d G[KINDS][3];
+    const __m512d drag = _mm512_set1_pd(0.01), zero = _mm512_setzero_pd(), gy = _mm512_set1_pd(-9.81);
+    const __m512d H = _mm512_set1_pd(ha), W = _mm512_set1_pd(w);
+    const size_t np = c->np, cap = c->np + c->pad, half = 3 * cap;
+    double *const *F = c->f, *const *X = c->x, *const *V = c->v;
+    size_t reach = 0;
+    for (int k = 0; k < KINDS; k++)
+        reach = c->off[k] > reach ? c->off[k] : reach;
+    size_t entered = 0;
+    __m512d prev1[3] = {zero, zero, zero}, prev2[3] = {zero, zero, zero};
+    for (size_t p = 0; p < np; p += CHUNK) {
+        for (; entered <= p + CHUNK - 1 + reach && entered + CHUNK <= cap; entered += CHUNK) {
+            __m512d xe[3], ve[3];
+            deinterleave8(in + 3 * entered, xe);
+            deinterleave8(in + half + 3 * entered, ve);
+            const __m512d m = _mm512_loadu_pd(mass + entered);
+            for (int d = 0; d < 3; d++) {
+                _mm512_store_pd(X[d] + entered, xe[d]);
+                _mm512_store_pd(V[d] + entered, ve[d]);
+                const __m512d g = d == 1 ? _mm512_mul_pd(m, gy) : zero;
+                _mm512_store_pd(F[d] + entered, _mm512_sub_pd(_mm512_add_pd(zero, g), _mm512_mul_pd(drag, ve[d])));
+            }
+        }
+        __m512d xa[3], va[3], a[3];
+        for (int d = 0; d < 3; d++) {
+            xa[d] = _mm512_load_pd(X[d] + p);
+            va[d] = _mm512_load_pd(V[d] + p);
+            a[d] = _mm512_load_pd(F[d] + p);
+        }
+        const uint8_t *mk = mask + (p / CHUNK) * KINDS;
+        for (int i = 0; i < KINDS; i++) {
+            const int k = order[i];
+            const size_t o = c->off[k], q = p + o;
+            const __mmask8 lanes = mk[k];
+            __m512d e[3];
+            const __m512d mag = _mm512_maskz_mov_pd(lanes, spring8(xa, va, X, V, q, c->rest[k] + p, e));
+            for (int d = 0; d < 3; d++) {
+                const __m512d gd = _mm512_mul_pd(mag, e[d]);
+                if (o <= 2)
+                    G[k][d] = gd;
+                else
+                    a[d] = _mm512_mask_sub_pd(a[d], lanes, a[d], gd);
+                if (o == 1) {
+                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
+                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev1[d]), 7)));
+                    prev1[d] = gd;
+                } else if (o == 2) {
+                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
+                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev2[d]), 6)));
+                    prev2[d] = gd;
+                } else {
+                    _mm512_mask_storeu_pd(F[d] + q, lanes, _mm512_add_pd(_mm512_loadu_pd(F[d] + q), gd));
+                }
+            }
+        }
+        for (int i = 0; i < 2; i++)
+            for (int d = 0; d < 3; d++)
+                a[d] = _mm512_mask_sub_pd(a[d], mk[order[i]], a[d], G[order[i]][d]);
+        const __m512d imv = _mm512_loadu_pd(im + p);
+        __m512d acc_soa[3], kv[3], kx[3];
+        for (int d = 0; d < 3; d++)
+            acc_soa[d] = _mm512_mul_pd(a[d], imv);
+        interleave8(acc_soa, kv);
+        for (int r = 0; r < 3; r++)
+            kx[r] = _mm512_loadu_pd(in + half + 3 * p + 8 * r);
+        for (int h2 = 0; h2 < 2; h2++) {
+            const size_t o0 = (h2 ? half : 0) + 3 * p;
+            for (int r = 0; r < 3; r++) {
+                const size_t o = o0 + 8 * (size_t)r;
+                const __m512d k = h2 ? kv[r] : kx[r];
+                const __m512d b = _mm512_loadu_pd(base + o), wk = _mm512_mul_pd(W, k);
+                if (which == 3) {
+                    const __m512d s = _mm512_add_pd(_mm512_loadu_pd(acc + o), wk);
+                    _mm512_storeu_pd(out + o, _mm512_add_pd(b, _mm512_mul_pd(H, s)));
+                } else {
+                    _mm512_storeu_pd(out + o, _mm512_add_pd(b, _mm512_mul_pd(H, k)));
+                    _mm512_storeu_pd(acc + o, which == 0 ? wk : _mm512_add_pd(_mm512_loadu_pd(acc + o), wk));
+                }
+            }
+        }
+    }
+}
 #endif
 
 /* One rk4 stage's sums (unit masses): next state base + h·a·k, acc += w·k
@@ -477,6 +613,56 @@ int main(int argc, char **argv)
                    "\"ns_per_particle_step\":%.2f,\"check\":%.9g}\n",
                    partner ? "ideal-cloth-fused-partner" : "ideal-cloth-fused", n, c.np, steps, law, t * per,
                    st[1][c.np / 2]);
+        }
+        /* the psys-like loop: interleaved state buffers of cap particles */
+        {
+            double *ab[3], *aacc = column(6 * cap), *mass = column(cap), *im = column(cap);
+            uint8_t *mask = malloc((cap / CHUNK + 1) * KINDS);
+            if (!mask) {
+                fprintf(stderr, "spring_ceiling: out of memory\n");
+                return 1;
+            }
+            memset(mask, 0xFF, (cap / CHUNK + 1) * KINDS);
+            cloth cw = c;
+            for (int q = 0; q < 3; q++) {
+                cw.x[q] = column(cap);
+                cw.v[q] = column(cap);
+                cw.f[q] = column(cap);
+            }
+            for (size_t i = 0; i < cap; i++)
+                mass[i] = im[i] = 1.0;
+            for (int b = 0; b < 3; b++) {
+                ab[b] = column(6 * cap);
+                for (size_t i = 0; i < cap; i++) {
+                    ab[b][3 * i] = s * (double)(i % n);
+                    ab[b][3 * i + 2] = s * (double)(i / n);
+                }
+            }
+            double *st = ab[0], *s1 = ab[1], *s2 = ab[2];
+            const double t0 = now();
+            for (int t = 0; t < steps; t++) {
+                fused_stage512_aos(&cw, st, s1, st, aacc, h * a[0], w[0], 0, mass, im, mask);
+                fused_stage512_aos(&cw, s1, s2, st, aacc, h * a[1], w[1], 1, mass, im, mask);
+                fused_stage512_aos(&cw, s2, s1, st, aacc, h * a[2], w[2], 2, mass, im, mask);
+                fused_stage512_aos(&cw, s1, s2, st, aacc, h, w[3], 3, mass, im, mask);
+                double *tmp = st;
+                st = s2;
+                s2 = tmp;
+            }
+            const double t = now() - t0;
+            free(mask);
+            for (size_t i = 0; i < c.np; i++) {
+                const double h1 = c.x[1][i], h2 = st[3 * i + 1];
+                if (!(fabs(h2 - h1) <= 1e-9 * fabs(h1) + 1e-15)) {
+                    fprintf(stderr, "spring_ceiling: psys-like: particle %zu's height %.17g differs from %.17g\n",
+                            i, h2, h1);
+                    status = 1;
+                    break;
+                }
+            }
+            printf("{\"case\":\"ideal-cloth-fused-psys-like\",\"n\":%zu,\"particles\":%zu,\"steps\":%d,"
+                   "\"law\":\"%s\",\"ns_per_particle_step\":%.2f,\"check\":%.9g}\n",
+                   n, c.np, steps, law, t * per, st[3 * (c.np / 2) + 1]);
         }
     }
 #endif
