@@ -227,6 +227,18 @@ __attribute__((target("avx512f"))) static void derivative512(cloth *c)
     }
 }
 
+/* a + the second ends' forces of a near kind (offset o, 1 or 2): g of
+ * this chunk's springs shifted up by o lanes, the last o lanes of the
+ * previous chunk's (*prev) shifted in; *prev becomes g. */
+__attribute__((target("avx512f"), always_inline)) static inline __m512d near_in(__m512d a, __m512d g, __m512d *prev,
+                                                                                int o)
+{
+    const __m512i gi = _mm512_castpd_si512(g), pi = _mm512_castpd_si512(*prev);
+    const __m512i sh = o == 1 ? _mm512_alignr_epi64(gi, pi, 7) : _mm512_alignr_epi64(gi, pi, 6);
+    *prev = g;
+    return _mm512_add_pd(a, _mm512_castsi512_pd(sh));
+}
+
 /* The same cloth with each rk4 stage's sums fused into the spring loop:
  * a chunk's force is complete once its own springs are done (every spring
  * goes from a lower to a higher index, and the higher ends of the long
@@ -269,14 +281,8 @@ fused_stage512_o(cloth *c, double *const *in, double *const *out, double *const 
                     G[k][d] = gd; /* its first ends after every second end */
                 else
                     a[d] = _mm512_sub_pd(a[d], gd);
-                if (c->off[k] == 1) {
-                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
-                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev1[d]), 7)));
-                    prev1[d] = gd;
-                } else if (c->off[k] == 2) {
-                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
-                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev2[d]), 6)));
-                    prev2[d] = gd;
+                if (c->off[k] <= 2) {
+                    a[d] = near_in(a[d], gd, c->off[k] == 1 ? &prev1[d] : &prev2[d], (int)c->off[k]);
                 } else {
                     _mm512_storeu_pd(F[d] + q, _mm512_add_pd(_mm512_loadu_pd(F[d] + q), gd));
                 }
@@ -405,14 +411,8 @@ __attribute__((target("avx512f"))) static void fused_stage512_aos(cloth *c, cons
                     G[k][d] = gd;
                 else
                     a[d] = _mm512_mask_sub_pd(a[d], lanes, a[d], gd);
-                if (o == 1) {
-                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
-                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev1[d]), 7)));
-                    prev1[d] = gd;
-                } else if (o == 2) {
-                    a[d] = _mm512_add_pd(a[d], _mm512_castsi512_pd(_mm512_alignr_epi64(
-                                                   _mm512_castpd_si512(gd), _mm512_castpd_si512(prev2[d]), 6)));
-                    prev2[d] = gd;
+                if (o <= 2) {
+                    a[d] = near_in(a[d], gd, o == 1 ? &prev1[d] : &prev2[d], (int)o);
                 } else {
                     _mm512_mask_storeu_pd(F[d] + q, lanes, _mm512_add_pd(_mm512_loadu_pd(F[d] + q), gd));
                 }
