@@ -225,17 +225,18 @@ static inline __attribute__((always_inline)) void contact_plane_rows(const psys_
                                                                       const bool stick, const int d)
 {
     const contact_plane q = contact_plane_of(pl);
-    const double *restrict x0 = X[0] + j0, *restrict x1 = X[1] + j0, *restrict x2 = X[d - 1] + j0;
-    const double *restrict v0 = V[0] + j0, *restrict v1 = V[1] + j0, *restrict v2 = V[d - 1] + j0;
-    double *restrict f0 = F[0] + j0, *restrict f1 = F[1] + j0, *restrict f2 = F[d - 1] + j0;
+    /* the third rows only in 3-D: restrict pointers must not share a row */
+    const double *restrict x0 = X[0] + j0, *restrict x1 = X[1] + j0, *restrict x2 = d == 3 ? X[2] + j0 : NULL;
+    const double *restrict v0 = V[0] + j0, *restrict v1 = V[1] + j0, *restrict v2 = d == 3 ? V[2] + j0 : NULL;
+    double *restrict f0 = F[0] + j0, *restrict f1 = F[1] + j0, *restrict f2 = d == 3 ? F[2] + j0 : NULL;
     /* the rows are distinct and each j stands alone; GCC honours restrict
      * only on parameters, so it is told directly */
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC ivdep
 #endif
     for (size_t j = 0; j < cnt; j++) {
-        const double x[3] = {x0[j], x1[j], x2[j]}, v[3] = {v0[j], v1[j], v2[j]};
-        double f[3] = {f0[j], f1[j], f2[j]};
+        const double x[3] = {x0[j], x1[j], d == 3 ? x2[j] : 0.0}, v[3] = {v0[j], v1[j], d == 3 ? v2[j] : 0.0};
+        double f[3] = {f0[j], f1[j], d == 3 ? f2[j] : 0.0};
         contact_law(&q, x, v, f, free_[j] != 0, stick, d);
         f0[j] = f[0];
         f1[j] = f[1];
@@ -276,6 +277,8 @@ static void contact_rows_clones(const psys_system *s, const uint32_t *perm, size
     }
 }
 
+/* The clones stay static, as elsewhere in the library: the exported name
+ * is a plain call into them. */
 void psys__contact_rows(const psys_system *s, const uint32_t *perm, size_t a, size_t cnt, const double *const *X,
                         const double *const *V, double *const *F)
 {
