@@ -36,6 +36,9 @@
 /* Overlapping runs with an offset of at least this many springs go in
  * reverse chunks (fused_part_d), shorter ones through a second loop. */
 #define FUSED_CHUNK_MIN 8
+/* Particles enter the window in granules of this many (a power of 2;
+ * sweep_to_d). */
+#define FUSED_ENTER 64
 
 /* Into each clone of fused_part (SPRING_CLONES), so the loops get its
  * instruction set. */
@@ -773,6 +776,11 @@ static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo,
     }
 }
 
+/* How far past the particles it finishes a sweep can reach: a run whose
+ * first end's block starts before upto ends before upto + this − 1. In the
+ * chain (psys__fused_chain), the lag between stages. */
+static size_t chain_reach(const springs *s) { return s->max_off + 2 * SPRING_BLOCK; }
+
 /* A sweep of particles [P, Q) through runs [r0, r1) that can stop after
  * any particle and go on later: the window [done, loaded) and the next run
  * r are kept between calls. */
@@ -808,13 +816,29 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     const size_t W = fz->W, mask = fz->mask, S = fz->S, P = w->P, Q = w->Q;
     _Alignas(64) double F[3 * SPRING_BLOCK];
     size_t loaded = w->loaded, done = w->done, r = w->r;
+    /* The particles this sweep could need, [0, reach_end): the chain's stage
+     * before has left them (its lag is chain_reach). */
+    const size_t reach = chain_reach(s), reach_end = upto < fz->n && fz->n - upto > reach - 2 ? upto + reach - 2 : fz->n;
+    /* Particles enter up to p, rounded up to whole granules where the window
+     * and reach_end allow: each entry pays its loops' set-up and tails, and
+     * a run asks for a few particles at a time. Entering earlier changes no
+     * operation on a particle. */
 #define LOAD_TO(p)                                                          \
-    while (loaded < (p)) {                                                  \
-        size_t cnt_ = W - (loaded & mask);                                  \
-        if (cnt_ > (p) - loaded)                                            \
-            cnt_ = (p) - loaded;                                            \
-        window_move(fz, rb, loaded, cnt_, d, true);                         \
-        loaded += cnt_;                                                     \
+    if (loaded < (p)) {                                                     \
+        size_t t_ = ((p) + FUSED_ENTER - 1) & ~(size_t)(FUSED_ENTER - 1);   \
+        if (t_ > done + W)                                                  \
+            t_ = done + W;                                                  \
+        if (t_ > reach_end)                                                 \
+            t_ = reach_end;                                                 \
+        if (t_ < (p))                                                       \
+            t_ = (p);                                                       \
+        while (loaded < t_) {                                               \
+            size_t cnt_ = W - (loaded & mask);                              \
+            if (cnt_ > t_ - loaded)                                         \
+                cnt_ = t_ - loaded;                                         \
+            window_move(fz, rb, loaded, cnt_, d, true);                     \
+            loaded += cnt_;                                                 \
+        }                                                                   \
     }
 #define LEAVE_TO(p)                                                         \
     while (done < (p)) {                                                    \
@@ -1057,8 +1081,6 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
 #define CHAIN_MAX_STAGES 7
 /* Particles the leading stage advances between turns of the others. */
 #define CHAIN_STEP 1024
-
-static size_t chain_reach(const springs *s) { return s->max_off + 2 * SPRING_BLOCK; }
 
 /* First run whose first particle's block is at least blk (the plan sorts
  * runs by that block first). */
