@@ -776,9 +776,10 @@ static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo,
     }
 }
 
-/* How far past the particles it finishes a sweep can reach: a run whose
- * first end's block starts before upto ends before upto + this − 1. In the
- * chain (psys__fused_chain), the lag between stages. */
+/* How far past the particles it finishes a sweep can reach: every particle
+ * of a run whose first end's block starts before upto lies before upto +
+ * this − 2 (a block of 256 first ends, a run of at most 256). In the chain
+ * (psys__fused_chain), the lag between stages. */
 static size_t chain_reach(const springs *s) { return s->max_off + 2 * SPRING_BLOCK; }
 
 /* A sweep of particles [P, Q) through runs [r0, r1) that can stop after
@@ -818,7 +819,8 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     size_t loaded = w->loaded, done = w->done, r = w->r;
     /* The particles this sweep could need, [0, reach_end): the chain's stage
      * before has left them (its lag is chain_reach). */
-    const size_t reach = chain_reach(s), reach_end = upto < fz->n && fz->n - upto > reach - 2 ? upto + reach - 2 : fz->n;
+    const size_t reach = chain_reach(s);
+    const size_t reach_end = upto < fz->n && fz->n - upto > reach - 2 ? upto + reach - 2 : fz->n;
     /* Particles enter up to p, rounded up to whole granules where the window
      * and reach_end allow: each entry pays its loops' set-up and tails, and
      * a run asks for a few particles at a time. Entering earlier changes no

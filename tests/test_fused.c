@@ -447,6 +447,28 @@ static psys_system *rope(size_t n, int dim)
     return s;
 }
 
+/* n particles in rows of 85 with springs (i, i + 85) for every i but those
+ * 254 past a multiple of 256, gravity and drag: each block of 256 first
+ * ends has a last run from its slot 255 on, 255 springs into the next
+ * block, the farthest a run can reach past its block (chain_reach in
+ * spring_fused.c). rk4's last stage, 3 · 597 particles behind the first,
+ * sweeps up to one past a block's start, so a run there reaches within 3
+ * particles of what the stage before has left, and rounding its entry up
+ * to a granule of 64 would read beyond: the sweep must stop at its reach. */
+static psys_system *reach_edge(size_t n)
+{
+    const double g3[3] = {0.1, -9.81, 0.3};
+    lcg = 4242;
+    psys_system *s = psys_system_create(3, NULL);
+    add_particles(s, 3, n, 85);
+    CHECK(psys_system_add_drag(s, 0.2) == PSYS_OK);
+    for (size_t i = 0; i + 85 < n; i++)
+        if (i % 256 != 254)
+            spring(s, i, i + 85);
+    CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
+    return s;
+}
+
 /* The system's derivative_chain, counting the steps it takes. */
 static psys_status (*system_chain)(void *ctx, double t, const double *y0, int stages, const double *c,
                                    const psys_stage_pass *pass);
@@ -517,7 +539,8 @@ static psys_system *sheet_2d(int nx, int ny)
  * particles, which the chain leaves to the stages. The ropes (3-D, 2-D) and
  * the 2-D sheet are long enough for the stage states to go through rings
  * (spring_fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
- * the sheet. The chain reads the step's start from the system's own x and
+ * the sheet; reach_edge has runs that reach as far as a sweep may read.
+ * The chain reads the step's start from the system's own x and
  * v (derivative_chain_current), or from the solver's copy where that
  * callback is dropped (where it declines, the state in the springs' order:
  * state_order_same_bits). */
@@ -525,7 +548,7 @@ static void chain_same_bits(void)
 {
     static const char *const solvers[] = {"midpoint", "rk4"};
     for (size_t k = 0; k < 2; k++)
-        for (int kind = 0; kind <= NKINDS + 2; kind++) {
+        for (int kind = 0; kind <= NKINDS + 3; kind++) {
             double *want = NULL;
             size_t size = 0;
             /* 0: stage by stage; 1..4: the chain on 1..4 threads; 5, 6: the
@@ -536,6 +559,7 @@ static void chain_same_bits(void)
                 psys_system *s = kind == NKINDS       ? rope(30000, 3)
                                  : kind == NKINDS + 1 ? rope(30000, 2)
                                  : kind == NKINDS + 2 ? sheet_2d(100, 160)
+                                 : kind == NKINDS + 3 ? reach_edge(30000)
                                                       : build(kind);
                 const int threads = run == 0 ? 1 : run <= 4 ? run : run == 5 ? 1 : 3;
                 CHECK(psys_system_set_threads(s, threads) == PSYS_OK);
