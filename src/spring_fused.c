@@ -824,7 +824,10 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     /* Particles enter up to p, rounded up to whole granules where the window
      * and reach_end allow: each entry pays its loops' set-up and tails, and
      * a run asks for a few particles at a time. Entering earlier changes no
-     * operation on a particle. */
+     * operation on a particle. The window's bound does not bind today (a run
+     * loads with done at its block's start, and W is a multiple of the
+     * granule or at least n); it keeps the ring from overrunning if that
+     * changes. reach_end binds (test_fused.chain_same_bits, reach_edge). */
 #define LOAD_TO(p)                                                          \
     if (loaded < (p)) {                                                     \
         size_t t_ = ((p) + FUSED_ENTER - 1) & ~(size_t)(FUSED_ENTER - 1);   \

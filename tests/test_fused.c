@@ -451,8 +451,9 @@ static psys_system *rope(size_t n, int dim)
  * 254 past a multiple of 256, gravity and drag: each block of 256 first
  * ends has a last run from its slot 255 on, 255 springs into the next
  * block, the farthest a run can reach past its block (chain_reach in
- * spring_fused.c). rk4's last stage, 3 · 597 particles behind the first,
- * sweeps up to one past a block's start, so a run there reaches within 3
+ * spring_fused.c). On one thread rk4's last stage, 3 · 597 particles
+ * behind the first, sweeps up to one past a block's start (the first
+ * advances 1,024 at a time), so a run there reaches within 3
  * particles of what the stage before has left, and rounding its entry up
  * to a granule of 64 would read beyond: the sweep must stop at its reach. */
 static psys_system *reach_edge(size_t n)
