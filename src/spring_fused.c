@@ -10,8 +10,10 @@
  * f = 0 plus the forces listed before the springs), the runs of each block
  * of 256 first particles add their spring forces, and particles that no
  * later run touches leave it (forces listed after the springs, then v and
- * f/m into ydot, or straight into the solver's stage work, psys_stage_pass).
- * The window stays in cache; y is read once, ydot written once.
+ * f/m into ydot, or straight into the solver's stage work, psys_stage_pass;
+ * on the AVX-512 loops a 3-D system's stage work is done among the next
+ * block's springs, exitq). The window stays in cache; y is read once, ydot
+ * written once.
  *
  * Same bits as the generic path: every particle's force sees the same
  * operations in the same order (0, the forces before the springs in list
@@ -448,7 +450,9 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
 /* Particles of one piece in one kind of storage leave the window (window_move): the forces
  * after the springs, then ydot = [v | f/m] (not-free particles, inv_mass 0,
  * get exactly 0). */
-static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+/* The forces after the springs on particles [a, a + cnt) of one piece
+ * (leave_rows). */
+static FUSED_INLINE void leave_post(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
     const size_t i0 = a & fz->mask;
     double *V[3], *F[3];
@@ -461,6 +465,14 @@ static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_
         rows_at(rb, fz->S, 0, d, i0, X);
         psys__contact_rows(fz->planes, NULL, a, cnt, (const double *const *)X, (const double *const *)V, F);
     }
+}
+
+static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
+{
+    const size_t i0 = a & fz->mask;
+    double *F[3];
+    rows_at(rb, fz->S, 2, d, i0, F);
+    leave_post(fz, rb, a, cnt, d);
     const size_t ad = a * (size_t)d;
     if (!fz->pass) {
         memcpy(fz->xdot + ad, fz->v + ad, cnt * (size_t)d * sizeof(double));
@@ -500,6 +512,136 @@ static FUSED_INLINE void window_move(const fused *fz, double *rb, size_t a, size
             leave_rows(fz, rb, a, m, d);
     }
 }
+
+/* Leavings held back (sweep_to_d): particles [lo, hi), whole octets from
+ * a multiple of 8, whose forces are complete (the forces after the springs
+ * included) and whose solver's work is still to do. The AVX-512 run loops
+ * do one octet after each vector of springs: that work, which streams the
+ * solver's vectors, then runs among the springs' instead of after them
+ * (bench/README.md, "Held-back leavings"). */
+typedef struct exitq {
+    const fused *fz;
+    const double *rb;
+    size_t lo, hi;
+    uint64_t bits; /* nonfinite_bits of what they wrote */
+} exitq;
+
+#if SPRING_AVX512
+/* Three component rows of eight particles (x0..x7, y0..y7, z0..z7) as the
+ * 24 doubles of those particles particle-major, three vectors. */
+__attribute__((target("avx512f"), always_inline)) static inline void aos3(const __m512d r[3], __m512d o[3])
+{
+    /* lanes from r[0] (0..7) and r[1] (8..15), then r[2]'s by a mask */
+    o[0] = _mm512_mask_permutexvar_pd(_mm512_permutex2var_pd(r[0], _mm512_set_epi64(10, 2, 0, 9, 1, 0, 8, 0), r[1]),
+                                      0x24, _mm512_set_epi64(0, 0, 1, 0, 0, 0, 0, 0), r[2]);
+    o[1] = _mm512_mask_permutexvar_pd(_mm512_permutex2var_pd(r[0], _mm512_set_epi64(5, 0, 12, 4, 0, 11, 3, 0), r[1]),
+                                      0x49, _mm512_set_epi64(0, 4, 0, 0, 3, 0, 0, 2), r[2]);
+    o[2] = _mm512_mask_permutexvar_pd(_mm512_permutex2var_pd(r[0], _mm512_set_epi64(0, 15, 7, 0, 14, 6, 0, 13), r[1]),
+                                      0x92, _mm512_set_epi64(7, 0, 0, 6, 0, 0, 5, 0), r[2]);
+}
+
+/* nonfinite_bits of eight values, bit 63 of an or of their lanes */
+__attribute__((target("avx512f"), always_inline)) static inline __m512i nonfinite8(__m512d x)
+{
+    return _mm512_add_epi64(_mm512_and_epi64(_mm512_castpd_si512(x), _mm512_set1_epi64(0x7ff0000000000000LL)),
+                            _mm512_set1_epi64(0x0010000000000000LL));
+}
+
+/* stage_apply on the 24 components of an octet (k: three vectors), element
+ * by element the same expressions. */
+__attribute__((target("avx512f"), always_inline)) static inline __m512i
+stage8(const psys_stage_pass *p, const double *base, double *acc, const __m512d k[3], double *nx, double *put)
+{
+    const __m512d h = _mm512_set1_pd(p->h), w = _mm512_set1_pd(p->w), zero = _mm512_setzero_pd();
+    __m512i nf = _mm512_setzero_si512();
+    if (put) {
+        for (int t = 0; t < 3; t++) {
+            const __m512d b = _mm512_loadu_pd(put + 8 * t), wk = _mm512_mul_pd(w, k[t]);
+            const __m512d in = p->acc_op == 2 ? wk
+                               : p->acc_op == 3 ? _mm512_add_pd(zero, wk)
+                                                 : _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk);
+            const __m512d r = _mm512_add_pd(b, _mm512_mul_pd(h, in));
+            _mm512_storeu_pd(put + 8 * t, r);
+            _mm512_storeu_pd(acc + 8 * t, b);
+            nf = _mm512_or_si512(nf, nonfinite8(r));
+        }
+        return p->finite ? nf : _mm512_setzero_si512();
+    }
+    if (nx) {
+        const __m512d an = _mm512_set1_pd(p->a);
+        for (int t = 0; t < 3; t++)
+            _mm512_storeu_pd(nx + 8 * t,
+                             _mm512_add_pd(_mm512_loadu_pd(base + 8 * t), _mm512_mul_pd(h, _mm512_mul_pd(an, k[t]))));
+    }
+    if (!acc)
+        return nf;
+    for (int t = 0; t < 3; t++) {
+        const __m512d wk = _mm512_mul_pd(w, k[t]);
+        __m512d r;
+        switch (p->acc_op) {
+        case 0:
+            r = _mm512_add_pd(zero, wk);
+            break;
+        case 1:
+            r = _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk);
+            break;
+        case 2:
+            r = _mm512_add_pd(_mm512_loadu_pd(base + 8 * t), _mm512_mul_pd(h, wk));
+            break;
+        case 3:
+            r = _mm512_add_pd(_mm512_loadu_pd(base + 8 * t), _mm512_mul_pd(h, _mm512_add_pd(zero, wk)));
+            break;
+        default:
+            r = _mm512_add_pd(_mm512_loadu_pd(base + 8 * t),
+                              _mm512_mul_pd(h, _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk)));
+            break;
+        }
+        _mm512_storeu_pd(acc + 8 * t, r);
+        nf = _mm512_or_si512(nf, nonfinite8(r));
+    }
+    return p->finite ? nf : _mm512_setzero_si512();
+}
+
+/* The held-back work of the octet at q->lo (3-D, the solver's pass, its
+ * own storage kind: exitq), what leave_rows does after the forces: x' = v
+ * from the window's v rows (the input state's v, copied), v' = f/m. */
+__attribute__((target("avx512f"), always_inline)) static inline void exit8(exitq *q)
+{
+    const fused *fz = q->fz;
+    const size_t a = q->lo, i0 = a & fz->mask, S = fz->S, e = a * 3;
+    const double *V = q->rb + 3 * S + i0, *F = q->rb + 6 * S + i0;
+    const psys_stage_pass *p = fz->pass;
+    __m512d r[3], k[3];
+    for (int c = 0; c < 3; c++)
+        r[c] = _mm512_load_pd(V + (size_t)c * S);
+    aos3(r, k);
+    __m512i nf = stage8(p, fz->base[0] + e, p->acc ? p->acc + e : NULL, k, next_at(fz, 0, a, 3),
+                        fz->put[0] ? fz->put[0] + e : NULL);
+    const __m512d im = _mm512_loadu_pd(fz->inv_mass + a);
+    const __mmask8 moving = _mm512_cmp_pd_mask(im, _mm512_setzero_pd(), _CMP_NEQ_UQ); /* accel's w != 0 */
+    for (int c = 0; c < 3; c++)
+        r[c] = _mm512_maskz_mov_pd(moving, _mm512_mul_pd(_mm512_load_pd(F + (size_t)c * S), im));
+    aos3(r, k);
+    nf = _mm512_or_si512(nf, stage8(p, fz->base[1] + e, p->acc ? p->acc + fz->nd + e : NULL, k,
+                                    next_at(fz, 1, a, 3), fz->put[1] ? fz->put[1] + e : NULL));
+    q->bits |= (uint64_t)_mm512_reduce_or_epi64(nf);
+    q->lo = a + 8;
+}
+#define EXIT_STEP(q)                \
+    do {                            \
+        if ((q)->lo < (q)->hi)      \
+            exit8(q);               \
+    } while (0)
+
+/* The held-back octets that are left. */
+__attribute__((target("avx512f"))) static void exit_flush(exitq *q)
+{
+    while (q->lo < q->hi)
+        exit8(q);
+}
+#else
+static void exit_flush(exitq *q) { (void)q; }
+#endif
 
 /* Forces of run springs j < len with their ends at ring slots a + j and
  * b + j (rows of stride S: x, v, f components): f_a -= F in the loop, and
@@ -613,7 +755,7 @@ spring8(double *ra, ptrdiff_t o, size_t S, const spring_par8 *p, size_t i, doubl
  * bits, with one load and store of each force instead of three of each. */
 __attribute__((target("avx512f"), always_inline)) static inline void
 run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const double *kd, const double *rest,
-               size_t len, const bool uni, const int d)
+               size_t len, const bool uni, const int d, exitq *q)
 {
     const size_t h0 = a & 7, endA = h0 + len, endB = endA + o;
     double *r = __builtin_assume_aligned((double *)psys__lanes_at(rb + a, -(ptrdiff_t)h0), 64); /* on a cache line */
@@ -649,23 +791,24 @@ run_near_512_d(double *rb, size_t S, size_t a, size_t o, const double *ks, const
             }
             gp[c] = g[c];
         }
+        EXIT_STEP(q);
     }
 }
 
 __attribute__((target("avx512f"))) static void run_near_512(double *rb, size_t S, size_t a, size_t o,
                                                             const double *ks, const double *kd, const double *rest,
-                                                            size_t len, bool uni, int d)
+                                                            size_t len, bool uni, int d, exitq *q)
 {
     if (d == 3) {
         if (uni)
-            run_near_512_d(rb, S, a, o, ks, kd, rest, len, true, 3);
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, true, 3, q);
         else
-            run_near_512_d(rb, S, a, o, ks, kd, rest, len, false, 3);
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, false, 3, q);
     } else {
         if (uni)
-            run_near_512_d(rb, S, a, o, ks, kd, rest, len, true, 2);
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, true, 2, q);
         else
-            run_near_512_d(rb, S, a, o, ks, kd, rest, len, false, 2);
+            run_near_512_d(rb, S, a, o, ks, kd, rest, len, false, 2, q);
     }
 }
 
@@ -676,7 +819,7 @@ __attribute__((target("avx512f"))) static void run_near_512(double *rb, size_t S
  * bits. Lanes outside the run load nothing and store nothing. */
 __attribute__((target("avx512f"), always_inline)) static inline void
 run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd, const double *rest,
-               size_t len, double *Fk, const bool uni, const bool apart, const int d)
+               size_t len, double *Fk, const bool uni, const bool apart, const int d, exitq *q)
 {
     const size_t h0 = a & 7, end = h0 + len;
     const ptrdiff_t o = (ptrdiff_t)b - (ptrdiff_t)a;
@@ -692,8 +835,10 @@ run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const
         spring8(r, o, S, &p, 0, pf, m, false, uni, apart, d);
         i = 8;
     }
-    for (; i + 8 <= end; i += 8)
+    for (; i + 8 <= end; i += 8) {
         spring8(r + i, o, S, &p, i, pf + i, 0xff, true, uni, apart, d);
+        EXIT_STEP(q);
+    }
     if (i < end)
         spring8(r + i, o, S, &p, i, pf + i, (__mmask8)((1u << (end - i)) - 1), false, uni, apart, d);
 }
@@ -701,26 +846,26 @@ run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const
 /* run_pair_512_d with uni and apart as constants (d is one). */
 __attribute__((target("avx512f"), always_inline)) static inline void
 run_pair_512_c(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd, const double *rest,
-               size_t len, double *Fk, bool uni, bool apart, const int d)
+               size_t len, double *Fk, bool uni, bool apart, const int d, exitq *q)
 {
     if (uni && apart)
-        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, d);
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, true, d, q);
     else if (uni)
-        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, d);
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, true, false, d, q);
     else if (apart)
-        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, d);
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, true, d, q);
     else
-        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, d);
+        run_pair_512_d(rb, S, a, b, ks, kd, rest, len, Fk, false, false, d, q);
 }
 
 __attribute__((target("avx512f"))) static void run_pair_512(double *rb, size_t S, size_t a, size_t b,
                                                             const double *ks, const double *kd, const double *rest,
-                                                            size_t len, double *Fk, bool uni, bool apart, int d)
+                                                            size_t len, double *Fk, bool uni, bool apart, int d, exitq *q)
 {
     if (d == 3)
-        run_pair_512_c(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, 3);
+        run_pair_512_c(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, 3, q);
     else
-        run_pair_512_c(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, 2);
+        run_pair_512_c(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, 2, q);
 }
 #endif
 
@@ -731,16 +876,17 @@ __attribute__((target("avx512f"))) static void run_pair_512(double *rb, size_t S
  * each spring. */
 static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd,
                                   const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d,
-                                  const bool k512)
+                                  const bool k512, exitq *q)
 {
 #if SPRING_AVX512
     if (k512) {
-        run_pair_512(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, d);
+        run_pair_512(rb, S, a, b, ks, kd, rest, len, Fk, uni, apart, d, q);
         return;
     }
 #else
     (void)k512;
 #endif
+    (void)q;
     const size_t h = psys__springs_to_line(a, len);
     if (h) {
         if (uni)
@@ -760,7 +906,7 @@ static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, cons
  * (e - c ≤ off, so no particle is both a first and a second end here), cut
  * where either end's range wraps around the ring. */
 static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo, size_t hi, size_t k, size_t c,
-                                         size_t e, double *F, bool uni, const int d, const bool k512)
+                                         size_t e, double *F, bool uni, const int d, const bool k512, exitq *q)
 {
     const springs *s = fz->s;
     const size_t W = fz->W, mask = fz->mask;
@@ -771,7 +917,7 @@ static FUSED_INLINE void run_piece_apart(const fused *fz, double *rb, size_t lo,
             m = W - pa;
         if (W - pb < m)
             m = W - pb;
-        run_pair(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, uni, true, d, k512);
+        run_pair(rb, fz->S, pa, pb, s->pks + k + c, s->pkd + k + c, s->prest + k + c, m, F, uni, true, d, k512, q);
         c += m;
     }
 }
@@ -817,6 +963,10 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     const size_t W = fz->W, mask = fz->mask, S = fz->S, P = w->P, Q = w->Q;
     _Alignas(64) double F[3 * SPRING_BLOCK];
     size_t loaded = w->loaded, done = w->done, r = w->r;
+    /* Leavings held back into the run loops (exitq): the AVX-512 loops, 3-D,
+     * with the solver's pass, particles in their own order, no planes. */
+    const bool hold = k512 && d == 3 && fz->pass && !fz->perm && !fz->planes;
+    exitq q = {fz, rb, 0, 0, 0};
     /* The particles this sweep could need, [0, reach_end): the chain's stage
      * before has left them (its lag is chain_reach). */
     const size_t reach = chain_reach(s);
@@ -824,15 +974,16 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     /* Particles enter up to p, rounded up to whole granules where the window
      * and reach_end allow: each entry pays its loops' set-up and tails, and
      * a run asks for a few particles at a time. Entering earlier changes no
-     * operation on a particle. The window's bound does not bind today (a run
-     * loads with done at its block's start, and W is a multiple of the
-     * granule or at least n); it keeps the ring from overrunning if that
-     * changes. reach_end binds (test_fused.chain_same_bits, reach_edge). */
+     * operation on a particle. The window's bound keeps entries off the
+     * slots still in use (W past the first particle still in the window,
+     * held back or not; a block's leavings are held back only where its
+     * runs fit under it). reach_end binds (test_fused.chain_same_bits,
+     * reach_edge). */
 #define LOAD_TO(p)                                                          \
     if (loaded < (p)) {                                                     \
         size_t t_ = ((p) + FUSED_ENTER - 1) & ~(size_t)(FUSED_ENTER - 1);   \
-        if (t_ > done + W)                                                  \
-            t_ = done + W;                                                  \
+        if (t_ > (q.lo < q.hi ? q.lo : done) + W)                           \
+            t_ = (q.lo < q.hi ? q.lo : done) + W;                           \
         if (t_ > reach_end)                                                 \
             t_ = reach_end;                                                 \
         if (t_ < (p))                                                       \
@@ -865,6 +1016,37 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
             break;
         if (!((lo < Q && lo + len > P) || (hi < Q && hi + len > P)))
             continue;
+        if (hold && b > done) {
+            /* Hold back the solver's work on [done, b) (exitq): the block's
+             * runs touch nothing before b, and b < Q (this run touches
+             * [P, Q) from at or after b). */
+            exit_flush(&q);
+            const size_t lo_ = done > P ? done : P, A = (lo_ + 7) & ~(size_t)7;
+            size_t need = b; /* the block's runs reach particles before need */
+            for (size_t r2 = r; r2 < w->r1 && (s->run_lo[r2] & ~(size_t)(SPRING_BLOCK - 1)) == b; r2++) {
+                const size_t e2 = s->run_lo[r2] + s->run_off[r2] + s->run_len[r2];
+                need = e2 > need ? e2 : need;
+            }
+            /* an octet across a stage ring's edge would take two kinds of
+             * storage (state_at, next_at) */
+            const bool cut = (fz->in_ring || fz->out_ring)
+                             && ((fz->zlo > A && fz->zlo < b && (fz->zlo & 7)) || (fz->zhi > A && fz->zhi < b && (fz->zhi & 7)));
+            /* what the block's runs enter must not reach the held-back slots */
+            if (b - done <= SPRING_BLOCK && A < b && need <= A + W && !cut) {
+                LOAD_TO(b)
+                if (lo_ < A) /* the first octet's tail, in one ring piece */
+                    window_move(fz, rb, lo_, A - lo_, d, false);
+                for (size_t a_ = A; a_ < b;) {
+                    size_t e_ = a_ + (W - (a_ & mask));
+                    e_ = e_ < b ? e_ : b;
+                    leave_post(fz, rb, a_, e_ - a_, d);
+                    a_ = e_;
+                }
+                q.lo = A;
+                q.hi = b;
+                done = b;
+            }
+        }
         LEAVE_TO(b)
         LOAD_TO(hi + len)
         if (len < SPRING_SHORT) {
@@ -876,7 +1058,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         const bool uni = s->run_uni[r];
         if (off >= len) {
             /* the two ranges are apart: both ends in one loop */
-            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d, k512);
+            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d, k512, &q);
             continue;
         }
         if (off >= FUSED_CHUNK_MIN) {
@@ -888,7 +1070,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
              * then all second ends). */
             for (size_t e = len; e > 0;) {
                 const size_t c = e > off ? e - off : 0;
-                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d, k512);
+                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d, k512, &q);
                 e = c;
             }
             continue;
@@ -899,7 +1081,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         const size_t ia = lo & mask, ib = hi & mask;
 #if SPRING_AVX512
         if (k512 && ib == ia + off && ib + len <= W) { /* neither range wraps around the ring */
-            run_near_512(rb, S, ia, off, s->pks + k, s->pkd + k, s->prest + k, len, uni, d);
+            run_near_512(rb, S, ia, off, s->pks + k, s->pkd + k, s->prest + k, len, uni, d, &q);
             continue;
         }
 #endif
@@ -910,7 +1092,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 const size_t j0 = cut[p];
                 const size_t pa = (lo + j0) & mask, pb = (hi + j0) & mask, m = cut[p + 1] - j0;
                 run_pair(rb, S, pa, pb, s->pks + k + j0, s->pkd + k + j0, s->prest + k + j0, m, F + j0, uni, false,
-                         d, k512);
+                         d, k512, &q);
             }
         for (int c = 0; c < d; c++) {
             double *restrict Fr = rb + (size_t)(2 * d + c) * S;
@@ -921,6 +1103,8 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 Fr[j - jb] += Fc[j];
         }
     }
+    exit_flush(&q);
+    note_nonfinite(fz, q.bits);
     const size_t end = upto < Q ? upto : Q;
     LEAVE_TO(end)
 #undef LOAD_TO

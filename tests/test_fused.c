@@ -447,25 +447,28 @@ static psys_system *rope(size_t n, int dim)
     return s;
 }
 
-/* n particles in rows of 85 with springs (i, i + 85) for every i but those
+/* n particles in rows of 85 with springs (i, i + off) for every i but those
  * 254 past a multiple of 256, gravity and drag: each block of 256 first
  * ends has a last run from its slot 255 on, 255 springs into the next
  * block, the farthest a run can reach past its block (chain_reach in
- * spring_fused.c). On one thread rk4's last stage, 3 · 597 particles
+ * spring_fused.c). With off 512 that run reaches 1,022 past its block's
+ * start, beyond the window's 1,024 slots less the block before: the
+ * sweep cannot hold that block's leavings back (exitq) and leaves them
+ * at once. With off 85, on one thread rk4's last stage, 3 · 597 particles
  * behind the first, sweeps up to one past a block's start (the first
  * advances 1,024 at a time), so a run there reaches within 3
  * particles of what the stage before has left, and rounding its entry up
  * to a granule of 64 would read beyond: the sweep must stop at its reach. */
-static psys_system *reach_edge(size_t n)
+static psys_system *reach_edge(size_t n, size_t off)
 {
     const double g3[3] = {0.1, -9.81, 0.3};
     lcg = 4242;
     psys_system *s = psys_system_create(3, NULL);
     add_particles(s, 3, n, 85);
     CHECK(psys_system_add_drag(s, 0.2) == PSYS_OK);
-    for (size_t i = 0; i + 85 < n; i++)
+    for (size_t i = 0; i + off < n; i++)
         if (i % 256 != 254)
-            spring(s, i, i + 85);
+            spring(s, i, i + off);
     CHECK(psys_system_add_gravity(s, g3) == PSYS_OK);
     return s;
 }
@@ -534,14 +537,16 @@ static psys_system *sheet_2d(int nx, int ny)
 }
 
 /* rk4 and midpoint steps with every stage swept together (derivative_chain)
- * against stage by stage (PSYS_CHAIN=0): the same bits, for 1 to 4
+ * against stage by stage (PSYS_CHAIN=0) and against the generic path
+ * (PSYS_FUSED=0; with AVX-512, 3-D systems' stage work is held back into
+ * the run loops on the fused paths): the same bits, for 1 to 4
  * threads (the rope's ranges at 3 and 4 threads, trapezoids and the
  * patches between them) and for a system with muscles or controlled
  * particles, which the chain leaves to the stages. The ropes (3-D, 2-D) and
  * the 2-D sheet are long enough for the stage states to go through rings
  * (spring_fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
- * the sheet; reach_edge has runs that reach as far as a sweep may read.
- * The chain reads the step's start from the system's own x and
+ * the sheet; reach_edge has runs that reach as far as a sweep may read
+ * (with offset 512, too far to hold a block's leavings back). The chain reads the step's start from the system's own x and
  * v (derivative_chain_current), or from the solver's copy where that
  * callback is dropped (where it declines, the state in the springs' order:
  * state_order_same_bits). */
@@ -549,20 +554,22 @@ static void chain_same_bits(void)
 {
     static const char *const solvers[] = {"midpoint", "rk4"};
     for (size_t k = 0; k < 2; k++)
-        for (int kind = 0; kind <= NKINDS + 3; kind++) {
+        for (int kind = 0; kind <= NKINDS + 4; kind++) {
             double *want = NULL;
             size_t size = 0;
             /* 0: stage by stage; 1..4: the chain on 1..4 threads; 5, 6: the
-             * chain from the solver's copy of the state on 1 and 3 threads */
-            for (int run = 0; run < 7; run++) {
-                setenv("PSYS_FUSED", "1", 1);
+             * chain from the solver's copy of the state on 1 and 3 threads;
+             * 7: the generic path */
+            for (int run = 0; run < 8; run++) {
+                setenv("PSYS_FUSED", run == 7 ? "0" : "1", 1);
                 setenv("PSYS_CHAIN", run == 0 ? "0" : "1", 1);
                 psys_system *s = kind == NKINDS       ? rope(30000, 3)
                                  : kind == NKINDS + 1 ? rope(30000, 2)
                                  : kind == NKINDS + 2 ? sheet_2d(100, 160)
-                                 : kind == NKINDS + 3 ? reach_edge(30000)
+                                 : kind == NKINDS + 3 ? reach_edge(30000, 85)
+                                 : kind == NKINDS + 4 ? reach_edge(30000, 512)
                                                       : build(kind);
-                const int threads = run == 0 ? 1 : run <= 4 ? run : run == 5 ? 1 : 3;
+                const int threads = run == 0 || run == 7 ? 1 : run <= 4 ? run : run == 5 ? 1 : 3;
                 CHECK(psys_system_set_threads(s, threads) == PSYS_OK);
                 psys_ode o = psys_system_ode(s);
                 count_chains(&o, run <= 4);
@@ -573,7 +580,7 @@ static void chain_same_bits(void)
                     CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
                 }
                 /* muscles (CHAIN_GAPS_2D) depend on the stage time: never chained */
-                const bool chained = run > 0 && kind != CHAIN_GAPS_2D;
+                const bool chained = run > 0 && run < 7 && kind != CHAIN_GAPS_2D;
                 CHECK(chain_calls == (chained ? 6 : 0));
                 CHECK(chain_current_calls == (chained && run <= 4 ? 6 : 0));
                 double *got = ode_state(&o, &size);
