@@ -41,6 +41,11 @@
 /* Particles enter the window in granules of this many (a power of 2;
  * sweep_to_d). */
 #define FUSED_ENTER 64
+/* Leavings are held back into the run loops (exitq) for systems of at
+ * least this many particles, whose solver's vectors stream from beyond L2:
+ * there it was faster (cloth-1024 0.97 ×, rope-1000000 0.96 ×), at 100²
+ * 1.02 × slower (bench/README.md, "Held-back leavings"). */
+#define FUSED_HOLD_MIN 32768
 
 /* Into each clone of fused_part (SPRING_CLONES), so the loops get its
  * instruction set. */
@@ -91,7 +96,8 @@ typedef struct fused {
     rowforce pre[FUSED_MAX_ROWS], post[FUSED_MAX_ROWS];
     const psys_system *planes; /* the system, where it has planes: their contact forces after the post
                                   forces (psys__contact_rows), or NULL */
-    bool forced; /* PSYS_FUSED=1: small sets threaded too (read once per evaluation) */
+    bool forced; /* PSYS_FUSED=1: small sets threaded too (read once per evaluation), and their
+                    leavings held back (FUSED_HOLD_MIN; tests) */
     bool k512;   /* the AVX-512 run loops (run_pair_512, run_near_512); PSYS_SPRING_PLAIN=1: the
                     compiler's loops (tests, benchmarks) */
     int npre, npost;
@@ -627,10 +633,12 @@ __attribute__((target("avx512f"), always_inline)) static inline void exit8(exitq
     q->bits |= (uint64_t)_mm512_reduce_or_epi64(nf);
     q->lo = a + 8;
 }
-#define EXIT_STEP(q)                \
-    do {                            \
-        if ((q)->lo < (q)->hi)      \
-            exit8(q);               \
+/* q NULL: nothing held back (a constant where sweep_to_d is inlined, so
+ * the loops carry no test then). */
+#define EXIT_STEP(q)                              \
+    do {                                          \
+        if ((q) != NULL && (q)->lo < (q)->hi)     \
+            exit8(q);                             \
     } while (0)
 
 /* The held-back octets that are left. */
@@ -957,16 +965,14 @@ static void sweep_start(const springs *s, sweep *w, size_t r0, size_t r1, size_t
  * the same and each particle sees the same operations wherever a sweep
  * stops: the bits of one sweep from P to Q. */
 static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_t upto, const int d,
-                                    const bool k512)
+                                    const bool k512, const bool hold)
 {
     const springs *s = fz->s;
     const size_t W = fz->W, mask = fz->mask, S = fz->S, P = w->P, Q = w->Q;
     _Alignas(64) double F[3 * SPRING_BLOCK];
     size_t loaded = w->loaded, done = w->done, r = w->r;
-    /* Leavings held back into the run loops (exitq): the AVX-512 loops, 3-D,
-     * with the solver's pass, particles in their own order, no planes. */
-    const bool hold = k512 && d == 3 && fz->pass && !fz->perm && !fz->planes;
-    exitq q = {fz, rb, 0, 0, 0};
+    /* Leavings held back into the run loops (hold: holds_back) */
+    exitq q = {fz, rb, 0, 0, 0}, *const qp = hold ? &q : NULL;
     /* The particles this sweep could need, [0, reach_end): the chain's stage
      * before has left them (its lag is chain_reach). */
     const size_t reach = chain_reach(s);
@@ -982,8 +988,8 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
 #define LOAD_TO(p)                                                          \
     if (loaded < (p)) {                                                     \
         size_t t_ = ((p) + FUSED_ENTER - 1) & ~(size_t)(FUSED_ENTER - 1);   \
-        if (t_ > (q.lo < q.hi ? q.lo : done) + W)                           \
-            t_ = (q.lo < q.hi ? q.lo : done) + W;                           \
+        if (t_ > (hold && q.lo < q.hi ? q.lo : done) + W)                   \
+            t_ = (hold && q.lo < q.hi ? q.lo : done) + W;                   \
         if (t_ > reach_end)                                                 \
             t_ = reach_end;                                                 \
         if (t_ < (p))                                                       \
@@ -1058,7 +1064,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         const bool uni = s->run_uni[r];
         if (off >= len) {
             /* the two ranges are apart: both ends in one loop */
-            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d, k512, &q);
+            run_piece_apart(fz, rb, lo, hi, k, 0, len, F, uni, d, k512, qp);
             continue;
         }
         if (off >= FUSED_CHUNK_MIN) {
@@ -1070,7 +1076,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
              * then all second ends). */
             for (size_t e = len; e > 0;) {
                 const size_t c = e > off ? e - off : 0;
-                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d, k512, &q);
+                run_piece_apart(fz, rb, lo, hi, k, c, e, F, uni, d, k512, qp);
                 e = c;
             }
             continue;
@@ -1081,7 +1087,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         const size_t ia = lo & mask, ib = hi & mask;
 #if SPRING_AVX512
         if (k512 && ib == ia + off && ib + len <= W) { /* neither range wraps around the ring */
-            run_near_512(rb, S, ia, off, s->pks + k, s->pkd + k, s->prest + k, len, uni, d, &q);
+            run_near_512(rb, S, ia, off, s->pks + k, s->pkd + k, s->prest + k, len, uni, d, qp);
             continue;
         }
 #endif
@@ -1092,7 +1098,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 const size_t j0 = cut[p];
                 const size_t pa = (lo + j0) & mask, pb = (hi + j0) & mask, m = cut[p + 1] - j0;
                 run_pair(rb, S, pa, pb, s->pks + k + j0, s->pkd + k + j0, s->prest + k + j0, m, F + j0, uni, false,
-                         d, k512, &q);
+                         d, k512, qp);
             }
         for (int c = 0; c < d; c++) {
             double *restrict Fr = rb + (size_t)(2 * d + c) * S;
@@ -1103,8 +1109,10 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 Fr[j - jb] += Fc[j];
         }
     }
-    exit_flush(&q);
-    note_nonfinite(fz, q.bits);
+    if (hold) {
+        exit_flush(&q);
+        note_nonfinite(fz, q.bits);
+    }
     const size_t end = upto < Q ? upto : Q;
     LEAVE_TO(end)
 #undef LOAD_TO
@@ -1114,13 +1122,21 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     w->r = r;
 }
 
+/* Whether a 3-D sweep on the AVX-512 loops holds leavings back (exitq):
+ * with the solver's pass, the particles in their own order, no planes, a
+ * large system (FUSED_HOLD_MIN). */
+static bool holds_back(const fused *fz)
+{
+    return fz->pass && !fz->perm && !fz->planes && (fz->n >= FUSED_HOLD_MIN || fz->forced);
+}
+
 SPRING_CLONES
 static void fused_sweep_plain(const fused *fz, int d, double *rb, sweep *w, size_t upto)
 {
     if (d == 2)
-        sweep_to_d(fz, rb, w, upto, 2, false);
+        sweep_to_d(fz, rb, w, upto, 2, false, false);
     else
-        sweep_to_d(fz, rb, w, upto, 3, false);
+        sweep_to_d(fz, rb, w, upto, 3, false, false);
 }
 
 #if SPRING_AVX512
@@ -1128,9 +1144,18 @@ __attribute__((target("avx512f"), flatten)) static void fused_sweep_512(const fu
                                                                       size_t upto)
 {
     if (d == 2)
-        sweep_to_d(fz, rb, w, upto, 2, true);
+        sweep_to_d(fz, rb, w, upto, 2, true, false);
     else
-        sweep_to_d(fz, rb, w, upto, 3, true);
+        sweep_to_d(fz, rb, w, upto, 3, true, false);
+}
+
+/* fused_sweep_512 holding leavings back (holds_back), 3-D: a function of
+ * its own, since with both in one function cloth-100 (never held back)
+ * took about 1.03 × the time. */
+__attribute__((target("avx512f"), flatten)) static void fused_sweep_512_held(const fused *fz, double *rb, sweep *w,
+                                                                           size_t upto)
+{
+    sweep_to_d(fz, rb, w, upto, 3, true, true);
 }
 #endif
 
@@ -1138,7 +1163,10 @@ static void fused_sweep(const fused *fz, int d, double *rb, sweep *w, size_t upt
 {
 #if SPRING_AVX512
     if (fz->k512) {
-        fused_sweep_512(fz, d, rb, w, upto);
+        if (d == 3 && holds_back(fz))
+            fused_sweep_512_held(fz, rb, w, upto);
+        else
+            fused_sweep_512(fz, d, rb, w, upto);
         return;
     }
 #endif
