@@ -43,8 +43,8 @@
 #define FUSED_ENTER 64
 /* Leavings are held back into the run loops (exitq) for systems of at
  * least this many particles, whose solver's vectors stream from beyond L2:
- * there it was faster (cloth-1024 0.97 ×, rope-1000000 0.96 ×), at 100²
- * 1.02 × slower (bench/README.md, "Held-back leavings"). */
+ * there it was faster (cloth-1024 0.95 ×, rope-1000000 0.93 ×), at 100²
+ * about 1.02 × slower (bench/README.md, "Held-back leavings"). */
 #define FUSED_HOLD_MIN 32768
 
 /* Into each clone of fused_part (SPRING_CLONES), so the loops get its
@@ -1150,8 +1150,8 @@ __attribute__((target("avx512f"), flatten)) static void fused_sweep_512(const fu
 }
 
 /* fused_sweep_512 holding leavings back (holds_back), 3-D: a function of
- * its own, since with both in one function cloth-100 (never held back)
- * took about 1.03 × the time. */
+ * its own, so that the loops that do not hold back stay as they were
+ * (cloth-100, never held back, was slower with both in one function). */
 __attribute__((target("avx512f"), flatten)) static void fused_sweep_512_held(const fused *fz, double *rb, sweep *w,
                                                                            size_t upto)
 {
