@@ -453,9 +453,6 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
     note_nonfinite(fz, bits);
 }
 
-/* Particles of one piece in one kind of storage leave the window (window_move): the forces
- * after the springs, then ydot = [v | f/m] (not-free particles, inv_mass 0,
- * get exactly 0). */
 /* The forces after the springs on particles [a, a + cnt) of one piece
  * (leave_rows). */
 static FUSED_INLINE void leave_post(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
@@ -473,6 +470,9 @@ static FUSED_INLINE void leave_post(const fused *fz, double *rb, size_t a, size_
     }
 }
 
+/* Particles of one piece in one kind of storage leave the window (window_move): the forces
+ * after the springs, then ydot = [v | f/m] (not-free particles, inv_mass 0,
+ * get exactly 0). */
 static FUSED_INLINE void leave_rows(const fused *fz, double *rb, size_t a, size_t cnt, const int d)
 {
     const size_t i0 = a & fz->mask;
@@ -1122,14 +1122,6 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     w->r = r;
 }
 
-/* Whether a 3-D sweep on the AVX-512 loops holds leavings back (exitq):
- * with the solver's pass, the particles in their own order, no planes, a
- * large system (FUSED_HOLD_MIN). */
-static bool holds_back(const fused *fz)
-{
-    return fz->pass && !fz->perm && !fz->planes && (fz->n >= FUSED_HOLD_MIN || fz->forced);
-}
-
 SPRING_CLONES
 static void fused_sweep_plain(const fused *fz, int d, double *rb, sweep *w, size_t upto)
 {
@@ -1147,6 +1139,14 @@ __attribute__((target("avx512f"), flatten)) static void fused_sweep_512(const fu
         sweep_to_d(fz, rb, w, upto, 2, true, false);
     else
         sweep_to_d(fz, rb, w, upto, 3, true, false);
+}
+
+/* Whether a 3-D sweep on the AVX-512 loops holds leavings back (exitq):
+ * with the solver's pass, the particles in their own order, no planes, a
+ * large system (FUSED_HOLD_MIN). */
+static bool holds_back(const fused *fz)
+{
+    return fz->pass && !fz->perm && !fz->planes && (fz->n >= FUSED_HOLD_MIN || fz->forced);
 }
 
 /* fused_sweep_512 holding leavings back (holds_back), 3-D: a function of

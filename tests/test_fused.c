@@ -546,8 +546,9 @@ static psys_system *sheet_2d(int nx, int ny)
  * the 2-D sheet are long enough for the stage states to go through rings
  * (spring_fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
  * the sheet; reach_edge has runs that reach as far as a sweep may read
- * (with offset 512, too far to hold a block's leavings back). The chain reads the step's start from the system's own x and
- * v (derivative_chain_current), or from the solver's copy where that
+ * (with offset 512, too far to hold a block's leavings back). The chain
+ * reads the step's start from the system's own x and v
+ * (derivative_chain_current), or from the solver's copy where that
  * callback is dropped (where it declines, the state in the springs' order:
  * state_order_same_bits). */
 static void chain_same_bits(void)
