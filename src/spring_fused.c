@@ -184,6 +184,14 @@ static inline double *next_at(const fused *fz, int half, size_t a, const int d)
     return p->next ? p->next + (half ? fz->nd : 0) + a * (size_t)d : NULL;
 }
 
+/* The end of the piece of particles [a, e) that lies in the window's
+ * slots before they wrap around (slot W − 1 is followed by slot 0). */
+static inline size_t window_piece_end(const fused *fz, size_t a, size_t e)
+{
+    const size_t wrap = a + (fz->W - (a & fz->mask));
+    return wrap < e ? wrap : e;
+}
+
 /* How many of particles [a, a + cnt) lie on a's side of the stage rings'
  * edges zlo and zhi (all of them without rings): the pieces enter and
  * leave take, each in one kind of storage. */
@@ -995,18 +1003,14 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
         if (t_ < (p))                                                       \
             t_ = (p);                                                       \
         while (loaded < t_) {                                               \
-            size_t cnt_ = W - (loaded & mask);                              \
-            if (cnt_ > t_ - loaded)                                         \
-                cnt_ = t_ - loaded;                                         \
-            window_move(fz, rb, loaded, cnt_, d, true);                     \
-            loaded += cnt_;                                                 \
+            const size_t u_ = window_piece_end(fz, loaded, t_);             \
+            window_move(fz, rb, loaded, u_ - loaded, d, true);              \
+            loaded = u_;                                                    \
         }                                                                   \
     }
 #define LEAVE_TO(p)                                                         \
     while (done < (p)) {                                                    \
-        size_t e_ = done + (W - (done & mask));                             \
-        if (e_ > (p))                                                       \
-            e_ = (p);                                                       \
+        const size_t e_ = window_piece_end(fz, done, (p));                  \
         LOAD_TO(e_)                                                         \
         size_t a_ = done > P ? done : P, z_ = e_ < Q ? e_ : Q;              \
         if (a_ < z_)                                                        \
@@ -1043,8 +1047,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 if (lo_ < A) /* the first octet's tail, in one ring piece */
                     window_move(fz, rb, lo_, A - lo_, d, false);
                 for (size_t a_ = A; a_ < b;) {
-                    size_t e_ = a_ + (W - (a_ & mask));
-                    e_ = e_ < b ? e_ : b;
+                    const size_t e_ = window_piece_end(fz, a_, b);
                     leave_post(fz, rb, a_, e_ - a_, d);
                     a_ = e_;
                 }
