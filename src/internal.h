@@ -302,6 +302,11 @@ bool psys__fused_chain_eligible(psys_system *sys, int stages);
  *  (springs reaching beyond 600 particles): 1 the chain was kept, 0 stage
  *  by stage, -1 not chosen (yet, or never needed). */
 int psys__fused_chain_pick(const psys_system *sys);
+/** Blocks whose leavings the fused sweeps have held back into the AVX-512
+ *  run loops so far (3-D systems of at least 32,768 particles, or any with
+ *  PSYS_FUSED=1, stepped by an explicit Runge–Kutta solver): 0 where that
+ *  path was never taken. */
+size_t psys__fused_held(const psys_system *sys);
 /** All stages of a chain Runge–Kutta step (psys_ode.derivative_chain) in
  *  one sweep: stage i on y_i (y0, then pass[i-1].next) with pass[i] applied;
  *  the bits of psys__fused_derivative stage after stage. y0 NULL: the

@@ -85,6 +85,7 @@ typedef struct fused {
     double *put[2];                        /* those x, v, where this last pass writes the result there and
                                               the start into acc (psys_stage_pass.in_place), or NULL */
     atomic_int *nonfinite;                 /* set when a pass asked to (.finite) wrote a non-finite acc */
+    atomic_size_t *held;                   /* the springs' count of held-back blocks */
     size_t nd;
     /* The chain's stage states of particles [zlo, zhi) in rings of R
      * particles (psys__fused_chain): x of particle p at ring[(p mod R)·d],
@@ -981,6 +982,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     size_t loaded = w->loaded, done = w->done, r = w->r;
     /* Leavings held back into the run loops (hold: holds_back) */
     exitq q = {fz, rb, 0, 0, 0}, *const qp = hold ? &q : NULL;
+    size_t held = 0;
     /* The particles this sweep could need, [0, reach_end): the chain's stage
      * before has left them (its lag is chain_reach). */
     const size_t reach = chain_reach(s);
@@ -1054,6 +1056,7 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
                 q.lo = A;
                 q.hi = b;
                 done = b;
+                held++;
             }
         }
         LEAVE_TO(b)
@@ -1115,6 +1118,8 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
     if (hold) {
         exit_flush(&q);
         note_nonfinite(fz, q.bits);
+        if (held)
+            atomic_fetch_add_explicit(fz->held, held, memory_order_relaxed);
     }
     const size_t end = upto < Q ? upto : Q;
     LEAVE_TO(end)
@@ -1213,6 +1218,7 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *x, const
     fz->base[0] = pass && pass->base ? pass->base : sys->x;
     fz->base[1] = pass && pass->base ? pass->base + nd : sys->v;
     fz->nonfinite = nonfinite;
+    fz->held = &((springs *)sys->springs)->held;
     fz->put[0] = fz->put[1] = NULL;
     fz->nd = nd;
     fz->in_ring = NULL;
@@ -1439,6 +1445,12 @@ bool psys__fused_chain_eligible(psys_system *sys, int stages)
 {
     fused fz;
     return chain_takes(sys, stages, &fz, true);
+}
+
+size_t psys__fused_held(const psys_system *sys)
+{
+    springs *s = sys->springs;
+    return s ? atomic_load_explicit(&s->held, memory_order_relaxed) : 0;
 }
 
 int psys__fused_chain_pick(const psys_system *sys)

@@ -5,6 +5,7 @@
 
 #include "internal.h"
 
+#include <stdatomic.h>
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -94,6 +95,10 @@ typedef struct springs {
         double t;            /* clock when that step was asked for (s) */
         double best[2];      /* shortest step of each mode (s) */
     } chain;
+    /* Blocks whose leavings the fused sweeps held back into the run loops
+     * (spring_fused.c, holds_back), counted once per sweep: which systems
+     * take that path (tests). */
+    atomic_size_t held;
 } springs;
 
 /* First particle of thread t's share of np particles among T. */

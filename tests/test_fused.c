@@ -1134,6 +1134,61 @@ static void avx512_switch(void)
     free(keep);
 }
 
+/* Blocks held back (psys__fused_held) after two rk4 steps of s, stage by
+ * stage or by the chain; s destroyed. */
+static size_t held_after_steps(psys_system *s, bool chain)
+{
+    setenv("PSYS_CHAIN", chain ? "1" : "0", 1);
+    psys_ode o = psys_system_ode(s);
+    psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+    CHECK(sv != NULL);
+    for (int step = 0; step < 2; step++) {
+        double taken;
+        CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
+    }
+    const size_t held = psys__fused_held(s);
+    psys_solver_destroy(sv);
+    psys_system_destroy(s);
+    unsetenv("PSYS_CHAIN");
+    return held;
+}
+
+/* Which systems hold a block's leavings back into the AVX-512 run loops
+ * (spring_fused.c, holds_back): 3-D ones of at least 32,768 particles by
+ * default, any size with PSYS_FUSED=1; never 2-D ones, ones with planes,
+ * blocks whose runs reach too far (reach_edge with offset 512), or the
+ * compiler's loops (PSYS_SPRING_PLAIN=1). A speed choice only (the same
+ * bits either way, chain_same_bits), so only counted here. */
+static void holds_back_where_large(void)
+{
+    const char *was = getenv("PSYS_SPRING_PLAIN");
+    char *keep = was ? strdup(was) : NULL;
+    unsetenv("PSYS_SPRING_PLAIN");
+    unsetenv("PSYS_FUSED");
+    const bool k512 = psys__springs_avx512();
+    for (int chain = 0; chain < 2; chain++) {
+        CHECK((held_after_steps(rope(40000, 3), chain) > 0) == k512);
+        CHECK(held_after_steps(rope(30000, 3), chain) == 0);
+        CHECK(held_after_steps(rope(40000, 2), chain) == 0);
+        CHECK(held_after_steps(reach_edge(40000, 512), chain) == 0);
+        psys_system *s = rope(40000, 3);
+        psys_plane_def ground = psys_plane_def_default();
+        ground.point[1] = -100; /* far below: the plane is there, no contact */
+        CHECK(psys_system_add_plane(s, &ground) == PSYS_OK);
+        CHECK(held_after_steps(s, chain) == 0);
+        setenv("PSYS_FUSED", "1", 1);
+        CHECK((held_after_steps(rope(30000, 3), chain) > 0) == k512);
+        CHECK((held_after_steps(rope(300, 3), chain) > 0) == k512);
+        unsetenv("PSYS_FUSED");
+        setenv("PSYS_SPRING_PLAIN", "1", 1);
+        CHECK(held_after_steps(rope(40000, 3), chain) == 0);
+        unsetenv("PSYS_SPRING_PLAIN");
+    }
+    if (keep)
+        setenv("PSYS_SPRING_PLAIN", keep, 1);
+    free(keep);
+}
+
 /* The answers of the system's sweeps to psys_stage_pass.finite, counted by
  * wrappers of derivative_chain and derivative_stage: [0] "not finite", [1]
  * "finite", [2] none given on a pass that asked; and the steps whose
@@ -1267,6 +1322,7 @@ static const check_case cases[] = {
     {"state_order_same_bits", state_order_same_bits},
     {"state_order_cache", state_order_cache},
     {"avx512_switch", avx512_switch},
+    {"holds_back_where_large", holds_back_where_large},
     {"sweeps_find_nonfinite", sweeps_find_nonfinite},
     {NULL, NULL},
 };

@@ -3,6 +3,7 @@ psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path planes_s
   state_order_same_bits
   state_order_cache
   avx512_switch
+  holds_back_where_large
   sweeps_find_nonfinite)
 # The determinism checks again with the fused derivative forced (it then
 # also runs small spring sets on several threads), and with it off (the
