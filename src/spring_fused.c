@@ -536,7 +536,7 @@ static FUSED_INLINE void window_move(const fused *fz, double *rb, size_t a, size
  * (bench/README.md, "Held-back leavings"). */
 typedef struct exitq {
     const fused *fz;
-    const double *rb;
+    double *rb;
     size_t lo, hi;
     uint64_t bits; /* nonfinite_bits of what they wrote */
 } exitq;
@@ -623,19 +623,21 @@ stage8(const psys_stage_pass *p, const double *base, double *acc, const __m512d 
 __attribute__((target("avx512f"), always_inline)) static inline void exit8(exitq *q)
 {
     const fused *fz = q->fz;
-    const size_t a = q->lo, i0 = a & fz->mask, S = fz->S, e = a * 3;
-    const double *V = q->rb + 3 * S + i0, *F = q->rb + 6 * S + i0;
+    const size_t a = q->lo, i0 = a & fz->mask, e = a * 3;
+    double *V[3], *F[3];
+    rows_at(q->rb, fz->S, 1, 3, i0, V);
+    rows_at(q->rb, fz->S, 2, 3, i0, F);
     const psys_stage_pass *p = fz->pass;
     __m512d r[3], k[3];
     for (int c = 0; c < 3; c++)
-        r[c] = _mm512_load_pd(V + (size_t)c * S);
+        r[c] = _mm512_load_pd(V[c]);
     aos3(r, k);
     __m512i nf = stage8(p, fz->base[0] + e, p->acc ? p->acc + e : NULL, k, next_at(fz, 0, a, 3),
                         fz->put[0] ? fz->put[0] + e : NULL);
     const __m512d im = _mm512_loadu_pd(fz->inv_mass + a);
     const __mmask8 moving = _mm512_cmp_pd_mask(im, _mm512_setzero_pd(), _CMP_NEQ_UQ); /* accel's w != 0 */
     for (int c = 0; c < 3; c++)
-        r[c] = _mm512_maskz_mov_pd(moving, _mm512_mul_pd(_mm512_load_pd(F + (size_t)c * S), im));
+        r[c] = _mm512_maskz_mov_pd(moving, _mm512_mul_pd(_mm512_load_pd(F[c]), im));
     aos3(r, k);
     nf = _mm512_or_si512(nf, stage8(p, fz->base[1] + e, p->acc ? p->acc + fz->nd + e : NULL, k,
                                     next_at(fz, 1, a, 3), fz->put[1] ? fz->put[1] + e : NULL));
@@ -998,8 +1000,9 @@ static FUSED_INLINE void sweep_to_d(const fused *fz, double *rb, sweep *w, size_
 #define LOAD_TO(p)                                                          \
     if (loaded < (p)) {                                                     \
         size_t t_ = ((p) + FUSED_ENTER - 1) & ~(size_t)(FUSED_ENTER - 1);   \
-        if (t_ > (hold && q.lo < q.hi ? q.lo : done) + W)                   \
-            t_ = (hold && q.lo < q.hi ? q.lo : done) + W;                   \
+        const size_t first_ = hold && q.lo < q.hi ? q.lo : done;            \
+        if (t_ > first_ + W)                                                \
+            t_ = first_ + W;                                                \
         if (t_ > reach_end)                                                 \
             t_ = reach_end;                                                 \
         if (t_ < (p))                                                       \
