@@ -11,7 +11,7 @@ set -euo pipefail
 # core), libstb-dev (stb_truetype for its text), libgl1-mesa-dri (software
 # GL); its tests run it under xvfb (+ xauth) and drive it with xdotool,
 # x11-utils (xwininfo), imagemagick (import: X screenshots) and jq (reads
-# the saved scene).
+# the saved scene). python3: tests/tools/md_links.py, the docs' link check.
 # mpich and libmpich-dev: the MPI build (make test-mpi, docs/mpi.md;
 # Open MPI's libopenmpi-dev works too).
 # lammps: Debian 12's LAMMPS (command `lmp`), for tests/cli/lammps.sh, which
@@ -20,7 +20,7 @@ set -euo pipefail
 PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev libcairo2-dev fonts-dejavu-core ffmpeg libxml2-utils
       clang libclang-rt-14-dev
       libsdl2-dev libepoxy-dev libstb-dev libgl1-mesa-dri xvfb xauth xdotool x11-utils imagemagick jq
-      lammps mpich libmpich-dev)
+      lammps mpich libmpich-dev python3)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
