@@ -1,0 +1,344 @@
+#!/usr/bin/env python3
+"""Runs the benchmarks behind bench/README.md's Results and prints them.
+
+    python3 bench/results.py [BUILD_DIR] [--logs DIR] [--skip STEP,...] [--rounds N]
+    python3 bench/results.py [BUILD_DIR] --logs DIR --replay   (print again from DIR)
+
+One command for every figure of the Results section, each peer interleaved
+with psys by the script that runs it, so the ratios hold within this run:
+
+    cloth      bench/cloth_vs_ref.sh BUILD N "100 256 1024"  (plain C reference)
+    suite      BUILD/psys bench                               (every default case)
+    ceiling    BUILD/spring_ceiling                           (what the 50 ns target asks)
+    lj         bench/lj_vs_lammps.sh BUILD N 1                (needs lmp: apt-get install lammps)
+    grid       BUILD/pair_bench grid-scaling
+    bh         BUILD/pair_bench bh-crossover
+    stiff      bench/stiff_cloth.sh BUILD                     (needs libbullet-dev)
+    callgrind  valgrind --tool=callgrind on cloth-100 and cloth-256 (needs valgrind)
+
+It prints the Results section as Markdown on stdout (progress on stderr)
+and keeps each program's raw output in --logs (default: a new folder under
+/tmp). A step whose tool is missing is left out with a note. About 15
+minutes on a 2-vCPU host; run it on a quiet machine.
+"""
+import argparse
+import datetime
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+STEPS = ["cloth", "suite", "ceiling", "lj", "grid", "bh", "stiff", "callgrind"]
+
+
+def log(msg):
+    print(f"results.py: {msg}", file=sys.stderr, flush=True)
+
+
+REPLAY = False
+
+
+def run(name, cmd, logs, env=None):
+    """Runs cmd in the source tree; its stdout, also kept as logs/name.log
+    (with --replay, that file's text, nothing run)."""
+    if REPLAY:
+        with open(os.path.join(logs, f"{name}.log")) as f:
+            return f.read()
+    log(f"{name}: {' '.join(cmd)}")
+    e = dict(os.environ, **(env or {}))
+    p = subprocess.run(cmd, cwd=ROOT, env=e, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    with open(os.path.join(logs, f"{name}.log"), "w") as f:
+        f.write(p.stdout)
+    if p.returncode != 0:
+        raise RuntimeError(f"{name}: exit {p.returncode}; see {logs}/{name}.log")
+    return p.stdout
+
+
+def jsons(text):
+    out = []
+    for line in text.splitlines():
+        line = line.strip()
+        if line.startswith("{"):
+            try:
+                out.append(json.loads(line.replace(": nan", ": null")))
+            except json.JSONDecodeError:
+                pass
+    return out
+
+
+def num(pattern, text, kind=float):
+    m = re.search(pattern, text)
+    if not m:
+        raise RuntimeError(f"no match for {pattern!r}")
+    return kind(m.group(1))
+
+
+def host():
+    info = {}
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                k, _, v = line.partition(":")
+                info.setdefault(k.strip(), v.strip())
+    except OSError:
+        pass
+    caches = []
+    base = "/sys/devices/system/cpu/cpu0/cache"
+    for idx in sorted(os.listdir(base)) if os.path.isdir(base) else []:
+        try:
+            rd = lambda n: open(os.path.join(base, idx, n)).read().strip()  # noqa: E731
+            if rd("type") in ("Data", "Unified") and rd("level") in ("1", "2"):
+                caches.append(f"L{rd('level')} {rd('size')}")
+        except OSError:
+            pass
+    simd = "AVX-512" if "avx512f" in info.get("flags", "") else "AVX2" if "avx2" in info.get("flags", "") else "SSE2"
+    return (f"{os.cpu_count()}-vCPU {info.get('model name', 'unknown CPU')} (family {info.get('cpu family', '?')} "
+            f"model {info.get('model', '?')}: {simd}, {', '.join(caches)} per core)")
+
+
+def commit():
+    try:
+        c = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
+                               text=True).stdout.strip()
+        return c + (" (with uncommitted changes)" if dirty else "")
+    except OSError:
+        return "unknown"
+
+
+def step_cloth(a, logs):
+    t = run("cloth", ["sh", "bench/cloth_vs_ref.sh", a.build, str(a.rounds), "100 256 1024"], logs)
+    r = {"triad": num(r"STREAM triad, 1 thread: ([0-9.]+)", t), "sizes": {}}
+    for m in re.finditer(r"cloth-(\d+) rk4: psys ([0-9.]+) ns, ref_cloth ([0-9.]+) ns per particle-step; psys/ref = "
+                         r"([0-9.]+); floor ([0-9.]+) ns: psys ([0-9.]+)x", t):
+        r["sizes"][int(m.group(1))] = [float(x) for x in m.groups()[1:]]
+    r["two"] = [float(x) for x in re.search(r"cloth-1024 rk4, 2 threads: ([0-9.]+) ns per particle-step; speed-up "
+                                            r"over 1 thread ([0-9.]+)", t).groups()]
+    return r
+
+
+def step_suite(a, logs):
+    return {(j["case"], j["integrator"]): j for j in jsons(run("suite", [f"{a.build}/psys", "bench"], logs))}
+
+
+def step_ceiling(a, logs):
+    return {j["case"]: j for j in jsons(run("ceiling", [f"{a.build}/spring_ceiling"], logs))}
+
+
+def step_lj(a, logs):
+    if not REPLAY and not shutil.which("lmp"):
+        raise FileNotFoundError("lmp (apt-get install lammps)")
+    js = jsons(run("lj", ["bash", "bench/lj_vs_lammps.sh", a.build, str(a.rounds), "1"], logs))
+    atoms = next(j["atoms"] for j in js if j["case"] == "lj-melt")
+    steps = next(j["steps"] for j in js if j["case"] == "lj-melt")
+    last = [j for j in js if j["case"] == "lj-melt-vs-lammps"][-1]
+    ns = lambda s: s * 1e9 / (atoms * steps)  # noqa: E731
+    return {"atoms": atoms, "psys": ns(last["psys_seconds"]), "lammps": ns(last["lammps_seconds"]),
+            "check": ns(last["lammps_check_seconds"]), "r": last["psys_over_lammps"],
+            "rc": last["psys_over_lammps_check"]}
+
+
+def step_grid(a, logs):
+    return [j for j in jsons(run("grid", [f"{a.build}/pair_bench", "grid-scaling"], logs))
+            if j["case"] == "grid-scaling-summary"][-1]
+
+
+def step_bh(a, logs):
+    js = jsons(run("bh", [f"{a.build}/pair_bench", "bh-crossover"], logs))
+    sizes = [j for j in js if j["case"] == "bh-crossover"]
+    return {"summary": [j for j in js if j["case"] == "bh-crossover-summary"][-1], "largest": sizes[-1],
+            "err": (min(j["force_error"] for j in sizes), max(j["force_error"] for j in sizes))}
+
+
+def step_stiff(a, logs):
+    if not REPLAY and not os.path.exists("/usr/include/bullet/btBulletDynamicsCommon.h"):
+        raise FileNotFoundError("libbullet-dev")
+    t = run("stiff", ["bash", "bench/stiff_cloth.sh", a.build], logs, env={"OMP_NUM_THREADS": "1"})
+    js = jsons(t)
+    head = re.search(r"# 4\. interleaved: bullet piterations=(\S+), implicit-euler dt=1/60 and dt=(\S+), "
+                     r"rk4 dt=(\S+)", t).groups()
+    med = re.search(r"# medians of (\d+): bullet ([0-9.]+) s, implicit-euler dt=1/60 ([0-9.]+) s, "
+                    r"implicit-euler dt=\S+ ([0-9.]+) s", t).groups()
+    tail = t[t.index("# 4. interleaved"):]
+    inter = jsons(tail)
+    strain = lambda pred: next(j["mean_strain"] for j in inter if pred(j))  # noqa: E731
+    it, big, rk = head
+    rk4 = [j for j in js if j.get("solver") == "rk4" and j.get("finite") is True]
+    return {"iters": it, "big": float(big), "reps": int(med[0]), "bullet": float(med[1]), "i60": float(med[2]),
+            "ibig": float(med[3]), "s_b": strain(lambda j: j["solver"] == "bullet"),
+            "s_60": strain(lambda j: j["solver"] == "implicit-euler" and abs(j["dt"] - 1 / 60) < 1e-6),
+            "s_big": strain(lambda j: j["solver"] == "implicit-euler" and abs(j["dt"] - float(big)) < 1e-6),
+            "rk_dt": rk, "rk4": rk4[-1] if rk4 else None}
+
+
+def step_callgrind(a, logs):
+    if not REPLAY and not shutil.which("valgrind"):
+        raise FileNotFoundError("valgrind")
+    out = {}
+    for n in (100, 256):
+        tot = {}
+        for k in (1, 5):  # 2 and 6 steps: the first builds the plan, so the difference is 4 steady steps
+            f = os.path.join(logs, f"callgrind.{n}.{k}")
+            run(f"callgrind-{n}-{k}", ["valgrind", "--tool=callgrind", f"--callgrind-out-file={f}",
+                                       "--collect-atstart=no", "--toggle-collect=psys_solver_step",
+                                       f"{a.build}/psys", "bench", f"cloth-{n}", "--steps", str(k), "--reps", "1",
+                                       "--bandwidth", "1"], logs, env={"OMP_NUM_THREADS": "1"})
+            tot[k] = num(r"totals: (\d+)", open(f).read(), int)
+        out[n] = (tot[5] - tot[1]) / (4 * n * n)
+    return out
+
+
+def f2(x):
+    return f"{x:.2f}"
+
+
+def markdown(r, missing, when, com, hw):
+    o = []
+    o.append(f"The latest figures, all from one run of `python3 bench/results.py` ({when}, commit {com}) on a {hw}"
+             + (f", STREAM triad {r['cloth']['triad']:.2f} GB/s on one thread" if "cloth" in r else "")
+             + ". Each peer ran interleaved with psys in the same run, so the ratios hold within that run; absolute "
+               "times drift with the host. Times are per particle-step (per atom-step for the pair forces), one "
+               "thread unless stated. The floor is the bytes that must move per particle-step over the triad "
+               "bandwidth ([below](#the-mass-spring-suite-psys-bench)); cases in cache run below it.")
+    if missing:
+        o.append("")
+        o.append("Not run: " + "; ".join(f"{k} ({v})" for k, v in missing.items()) + ".")
+    if "cloth" in r:
+        c = r["cloth"]
+        o += ["", f"**Mass-spring cloth against a plain C implementation** (`bench/cloth_vs_ref.sh`: medians of "
+                  f"{r['rounds']} rounds; the reference is `../shared/peers/ref_cloth.c`, gcc -O3 -march=native, the "
+                  "same sheet, springs and rk4):", "",
+              "| case | psys | reference | psys / reference | floor | psys / floor | issue 8 target |",
+              "| --- | --- | --- | --- | --- | --- | --- |"]
+        target = {100: lambda p, fl: "≤ 50 ns: " + ("met" if p <= 50 else "**not met**"),
+                  1024: lambda p, fl: "≤ 1.5 × floor: " + ("met" if p <= 1.5 * fl else "**not met**")}
+        for n, (p, ref, ratio, fl, pf) in sorted(c["sizes"].items()):
+            t = target[n](p, fl) if n in target else "—"
+            o.append(f"| cloth-{n} rk4 | {f2(p)} ns | {f2(ref)} ns | {ratio:.3f} | {f2(fl)} ns | {pf:.2f} | {t} |")
+        p2, sp = c["two"]
+        o.append(f"| cloth-1024 rk4, 2 threads | {f2(p2)} ns | — | — | — | — | ≥ 1.6 × one thread: **{sp:.2f} ×**, "
+                 + ("met" if sp >= 1.6 else "not met") + " |")
+    if "suite" in r:
+        s = r["suite"]
+        o += ["", "**The whole suite** (`build/psys bench`, the default cases, medians of 5 repetitions):", "",
+              "| case | rk4 | verlet | ns per spring evaluation (rk4, verlet) | rk4 / floor |",
+              "| --- | --- | --- | --- | --- |"]
+        cases = []
+        for (case, _integ) in s:
+            if case not in cases:
+                cases.append(case)
+        for case in cases:
+            rk, vv = s.get((case, "rk4")), s.get((case, "verlet"))
+            cell = lambda j: f"{j['ns_per_particle_step']:,.2f} ns" if j else "—"  # noqa: E731
+            se = [f"{j['ns_per_spring_eval']:.2f}" for j in (rk, vv) if j and j.get("ns_per_spring_eval")]
+            fl = f"{rk['times_floor']:.2f}" if rk else "arithmetic bound"
+            o.append(f"| {case} | {cell(rk)} | {cell(vv)} | {', '.join(se) or '—'} | {fl} |")
+    if "ceiling" in r:
+        g = r["ceiling"]
+        o += ["", "**What the 50 ns target asks of this host** (`build/spring_ceiling`, not psys, "
+                  "[below](#ceiling-an-idealised-cloth-loop-on-this-host)): the square roots and divisions of "
+                  f"cloth-100 rk4 alone take {g['divider']['floor_ns_per_particle_step']:.2f} ns per particle-step; "
+                  "an idealised cloth loop written for the benchmark alone (no edge rows, pinned corners, per-run "
+                  "parameters or same-bits guarantee) takes "
+                  f"{g['ideal-cloth-fused']['ns_per_particle_step']:.2f} ns with the stage sums fused into it, "
+                  f"{g['ideal-cloth-fused-partner']['ns_per_particle_step']:.2f} in the partner order, and "
+                  f"{g['ideal-cloth-fused-psys-like']['ns_per_particle_step']:.2f} with psys's work in it. The "
+                  "sections from \"What cloth-100 needs\" on give what was measured and tried."]
+    if any(k in r for k in ("lj", "grid", "bh")):
+        o += ["", "**Pair forces and N-body:**", "", "| case (command) | psys | peer | ratio |",
+              "| --- | --- | --- | --- |"]
+        if "lj" in r:
+            j = r["lj"]
+            o.append(f"| LJ melt, {j['atoms']:,} atoms, 100 verlet steps (`bench/lj_vs_lammps.sh`, medians of "
+                     f"{r['rounds']}) | {j['psys']:.1f} ns | LAMMPS: {j['lammps']:.1f} ns (lists rebuilt every 20 "
+                     f"steps unchecked), {j['check']:.1f} ns (`check yes`, rebuilt when needed, as psys does) | "
+                     f"**{j['r']:.3f}**, **{j['rc']:.3f}** |")
+        if "grid" in r:
+            g = r["grid"]
+            o.append(f"| the same liquid at {g['sizes']} sizes, 864 to 1,000,188 atoms (`build/pair_bench grid-scaling`) | "
+                     f"{g['min_ns_per_atom_step']:.1f} ns ({g['n_at_min']:,} atoms) to "
+                     f"{g['max_ns_per_atom_step']:.1f} ns ({g['n_at_max']:,}) | — | largest / smallest "
+                     f"{g['max_over_min']:.2f} |")
+        if "bh" in r:
+            b, L = r["bh"]["summary"], r["bh"]["largest"]
+            lo, hi = r["bh"]["err"]
+            o.append(f"| Barnes–Hut θ {b['theta']:.1f} against direct sums, Plummer sphere (`build/pair_bench "
+                     f"bh-crossover`) | faster from {b['crossover_n']:,} bodies (interpolated; first faster size "
+                     f"{b['first_faster_n']:,}), {L['ratio']:.2f} × faster at {L['n']:,}; force error "
+                     f"{100 * lo:.2f}–{100 * hi:.2f} % | — | — |")
+    if "stiff" in r:
+        s = r["stiff"]
+        o += ["", "**Stiff cloth against Bullet** (`bench/stiff_cloth.sh`, "
+                  "[below](#stiff-cloth-implicit-euler-against-bullet): 100×100 cloth hanging from two corners, 1 s "
+                  f"simulated; wall seconds per simulated second, medians of {s['reps']} interleaved runs; Bullet "
+                  f"float64 at {s['iters']} position iterations, the fewest reaching ≤ 2 % mean strain):", "",
+              "| code | setting | s per simulated s | mean strain | / Bullet |", "| --- | --- | --- | --- | --- |",
+              f"| Bullet | {s['iters']} iterations, dt = 1/240 | {s['bullet']:.3f} | {100 * s['s_b']:.2f} % | 1 |",
+              f"| psys implicit-euler | dt = 1/60 | {s['i60']:.3f} | {100 * s['s_60']:.2f} % | "
+              f"**{s['i60'] / s['bullet']:.3f}** |",
+              f"| psys implicit-euler | dt = {s['big']:g} (the largest of the sweep with ≤ 2 %) | {s['ibig']:.3f} | "
+              f"{100 * s['s_big']:.2f} % | **{s['ibig'] / s['bullet']:.3f}** |"]
+        if s["rk4"]:
+            k = s["rk4"]
+            o.append(f"| psys rk4 | dt = {k['dt']:g} (the largest stable of the sweep; one run, not interleaved) | "
+                     f"{k['wall_s']:.2f} | {100 * k['mean_strain']:.2f} % | {k['wall_s'] / s['bullet']:.2f} |")
+    if "callgrind" in r:
+        c = r["callgrind"]
+        o += ["", "**Callgrind** (instructions per particle-step, repeatable: "
+                  "[below](#callgrind-instructions-per-particle-step-repeatable)): "
+                  f"**{c[100]:.0f} Ir** for cloth-100 and **{c[256]:.0f} Ir** for cloth-256 rk4."]
+    o += ["", "MPI scaling: [docs/mpi.md](../docs/mpi.md#measured-scaling-on-this-machine)."]
+    return "\n".join(o)
+
+
+def main():
+    ap = argparse.ArgumentParser(description="Runs the benchmarks of bench/README.md's Results; prints them.")
+    ap.add_argument("build", nargs="?", default="build")
+    ap.add_argument("--logs", help="folder for the raw outputs (default: a new one under /tmp)")
+    ap.add_argument("--skip", default="", help="comma-separated steps to leave out: " + ",".join(STEPS))
+    ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of cloth and lj (default 3)")
+    ap.add_argument("--replay", action="store_true",
+                    help="print the section again from the raw outputs already in --logs, running nothing")
+    a = ap.parse_args()
+    global REPLAY
+    REPLAY = a.replay
+    if a.replay and not a.logs:
+        ap.error("--replay needs --logs DIR")
+    skip = {s for s in a.skip.split(",") if s}
+    bad = skip - set(STEPS)
+    if bad:
+        ap.error(f"unknown step(s) {', '.join(sorted(bad))}; steps: {', '.join(STEPS)}")
+    if not os.path.exists(os.path.join(ROOT, a.build, "psys")):
+        ap.error(f"{a.build}/psys not found: build first (make build)")
+    logs = a.logs or tempfile.mkdtemp(prefix="psys-results-")
+    os.makedirs(logs, exist_ok=True)
+    meta = os.path.join(logs, "meta.json")  # what the run was of, for --replay
+    if a.replay:
+        with open(meta) as f:
+            m = json.load(f)
+    else:
+        m = {"date": datetime.date.today().isoformat(), "commit": commit(), "host": host()}
+        with open(meta, "w") as f:
+            json.dump(m, f)
+    when, com, hw = m["date"], m["commit"], m["host"]
+    r, missing = {"rounds": a.rounds}, {}
+    for name in STEPS:
+        if name in skip:
+            continue
+        try:
+            r[name] = globals()[f"step_{name}"](a, logs)
+        except FileNotFoundError as e:
+            missing[name] = f"needs {e.args[0] if e.args else e}"
+            log(f"{name}: left out ({missing[name]})")
+    print(markdown(r, missing, when, com, hw))
+    log(f"raw outputs in {logs}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
