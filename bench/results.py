@@ -166,14 +166,16 @@ def step_stiff(a, logs):
                     r"implicit-euler dt=\S+ ([0-9.]+) s", t).groups()
     tail = t[t.index("# 4. interleaved"):]
     inter = jsons(tail)
-    strain = lambda pred: next(j["mean_strain"] for j in inter if pred(j))  # noqa: E731
     it, big, rk = head
+    if "none" in (it, big):
+        raise RuntimeError(f"stiff: no Bullet setting or implicit-euler step reached <= 2 % strain; see {logs}/stiff.log")
+    strain = lambda solver, dt=None: next(  # noqa: E731
+        j["mean_strain"] for j in inter
+        if j.get("solver") == solver and (dt is None or abs(j.get("dt", 0) - dt) < 1e-6))
     rk4 = [j for j in js if j.get("solver") == "rk4" and j.get("finite") is True]
     return {"iters": it, "big": float(big), "reps": int(med[0]), "bullet": float(med[1]), "i60": float(med[2]),
-            "ibig": float(med[3]), "s_b": strain(lambda j: j["solver"] == "bullet"),
-            "s_60": strain(lambda j: j["solver"] == "implicit-euler" and abs(j["dt"] - 1 / 60) < 1e-6),
-            "s_big": strain(lambda j: j["solver"] == "implicit-euler" and abs(j["dt"] - float(big)) < 1e-6),
-            "rk_dt": rk, "rk4": rk4[-1] if rk4 else None}
+            "ibig": float(med[3]), "s_b": strain("bullet"), "s_60": strain("implicit-euler", 1 / 60),
+            "s_big": strain("implicit-euler", float(big)), "rk4": rk4[-1] if rk4 else None}
 
 
 def step_callgrind(a, logs):
@@ -207,7 +209,7 @@ def markdown(r, missing, when, com, hw):
                "bandwidth ([below](#the-mass-spring-suite-psys-bench)); cases in cache run below it.")
     if missing:
         o.append("")
-        o.append("Not run: " + "; ".join(f"{k} ({v})" for k, v in missing.items()) + ".")
+        o.append("Left out: " + "; ".join(f"{k} ({v})" for k, v in missing.items()) + ".")
     if "cloth" in r:
         c = r["cloth"]
         o += ["", f"**Mass-spring cloth against a plain C implementation** (`bench/cloth_vs_ref.sh`: medians of "
@@ -326,7 +328,7 @@ def main():
         with open(meta, "w") as f:
             json.dump(m, f)
     when, com, hw = m["date"], m["commit"], m["host"]
-    r, missing = {"rounds": a.rounds}, {}
+    r, missing, failed = {"rounds": a.rounds}, {}, {}
     for name in STEPS:
         if name in skip:
             continue
@@ -335,9 +337,12 @@ def main():
         except FileNotFoundError as e:
             missing[name] = f"needs {e.args[0] if e.args else e}"
             log(f"{name}: left out ({missing[name]})")
-    print(markdown(r, missing, when, com, hw))
+        except (RuntimeError, OSError, KeyError, ValueError, StopIteration, AttributeError) as e:
+            failed[name] = f"failed: {e}"
+            log(f"{name}: {failed[name]}")
+    print(markdown(r, {**missing, **failed}, when, com, hw))
     log(f"raw outputs in {logs}")
-    return 0
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
