@@ -2,7 +2,7 @@
 """Runs the benchmarks behind bench/README.md's Results and prints them.
 
     python3 bench/results.py [BUILD_DIR] [--logs DIR] [--skip STEP,...] [--rounds N]
-    python3 bench/results.py [BUILD_DIR] --logs DIR --replay   (print again from DIR)
+    python3 bench/results.py [BUILD_DIR] --logs DIR --replay [--check FILE]   (print again from DIR)
 
 One command for every figure of the Results section, each peer interleaved
 with psys by the script that runs it, so the ratios hold within this run:
@@ -19,7 +19,9 @@ with psys by the script that runs it, so the ratios hold within this run:
 It prints the Results section as Markdown on stdout (progress on stderr)
 and keeps each program's raw output in --logs (default: a new folder under
 /tmp). A step whose tool is missing is left out with a note. About 15
-minutes on a 2-vCPU host; run it on a quiet machine.
+minutes on a 2-vCPU host; run it on a quiet machine. bench/results/ keeps
+the outputs behind bench/README.md's Results; the test docs.bench_results
+replays them and checks that the README holds what they print (--check).
 """
 import argparse
 import datetime
@@ -186,10 +188,11 @@ def step_callgrind(a, logs):
         tot = {}
         for k in (1, 5):  # 2 and 6 steps: the first builds the plan, so the difference is 4 steady steps
             f = os.path.join(logs, f"callgrind.{n}.{k}")
-            run(f"callgrind-{n}-{k}", ["valgrind", "--tool=callgrind", f"--callgrind-out-file={f}",
-                                       "--collect-atstart=no", "--toggle-collect=psys_solver_step",
-                                       f"{a.build}/psys", "bench", f"cloth-{n}", "--steps", str(k), "--reps", "1",
-                                       "--bandwidth", "1"], logs, env={"OMP_NUM_THREADS": "1"})
+            if not REPLAY:
+                run(f"callgrind-{n}-{k}", ["valgrind", "--tool=callgrind", f"--callgrind-out-file={f}",
+                                           "--collect-atstart=no", "--toggle-collect=psys_solver_step",
+                                           f"{a.build}/psys", "bench", f"cloth-{n}", "--steps", str(k), "--reps",
+                                           "1", "--bandwidth", "1"], logs, env={"OMP_NUM_THREADS": "1"})
             tot[k] = num(r"totals: (\d+)", open(f).read(), int)
         out[n] = (tot[5] - tot[1]) / (4 * n * n)
     return out
@@ -199,9 +202,12 @@ def f2(x):
     return f"{x:.2f}"
 
 
-def markdown(r, missing, when, com, hw):
+def markdown(r, missing, when, com, hw, replay=None):
     o = []
-    o.append(f"The latest figures, all from one run of `python3 bench/results.py` ({when}, commit {com}) on a {hw}"
+    hw = re.sub(r"\((R|TM)\)", "", hw)
+    again = f"; printed again by `--replay` from its outputs in `{replay}`" if replay else ""
+    o.append(f"The latest figures, all from one run of the commands `python3 bench/results.py` runs ({when}, commit "
+             f"{com}{again}) on a {hw}"
              + (f", STREAM triad {r['cloth']['triad']:.2f} GB/s on one thread" if "cloth" in r else "")
              + ". Each peer ran interleaved with psys in the same run, so the ratios hold within that run; absolute "
                "times drift with the host. Times are per particle-step (per atom-step for the pair forces), one "
@@ -306,6 +312,9 @@ def main():
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of cloth and lj (default 3)")
     ap.add_argument("--replay", action="store_true",
                     help="print the section again from the raw outputs already in --logs, running nothing")
+    ap.add_argument("--check", metavar="FILE",
+                    help="exit 1 unless FILE holds the printed section word for word (with --replay: the docs' "
+                         "figures are those of the outputs kept)")
     a = ap.parse_args()
     global REPLAY
     REPLAY = a.replay
@@ -340,8 +349,15 @@ def main():
         except (RuntimeError, OSError, KeyError, ValueError, StopIteration, AttributeError) as e:
             failed[name] = f"failed: {e}"
             log(f"{name}: {failed[name]}")
-    print(markdown(r, {**missing, **failed}, when, com, hw))
+    rel = os.path.relpath(os.path.abspath(logs), ROOT)
+    text = markdown(r, {**missing, **failed}, when, com, hw, (logs if rel.startswith("..") else rel) if a.replay else None)
+    print(text)
     log(f"raw outputs in {logs}")
+    if a.check:
+        with open(a.check, encoding="utf-8") as f:
+            if text not in f.read():
+                log(f"{a.check} does not hold this section as printed above")
+                return 1
     return 1 if failed else 0
 
 

@@ -7,3 +7,10 @@ if(PSYS_PYTHON3)
 else()
   message(WARNING "python3 not found: the docs.links test is not built (scripts/install-deps.sh installs it)")
 endif()
+# bench/README.md's Results are what bench/results.py prints from the raw
+# outputs kept in bench/results/ (and the script still reads them).
+if(PSYS_PYTHON3)
+  add_test(NAME docs.bench_results
+    COMMAND ${PSYS_PYTHON3} ${PROJECT_SOURCE_DIR}/bench/results.py --replay
+            --logs ${PROJECT_SOURCE_DIR}/bench/results/2026-12-06-68895a1 --check ${PROJECT_SOURCE_DIR}/bench/README.md)
+endif()
