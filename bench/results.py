@@ -18,7 +18,7 @@ with psys by the script that runs it, so the ratios hold within this run:
 
 It prints the Results section as Markdown on stdout (progress on stderr)
 and keeps each program's raw output in --logs (default: a new folder under
-/tmp). A step whose tool is missing is left out with a note. About 15
+/tmp). A step whose tool is missing is left out with a note. About 20
 minutes on a 2-vCPU host; run it on a quiet machine. bench/results/ keeps
 the outputs behind bench/README.md's Results; the test docs.bench_results
 replays them and checks that the README holds what they print (--check).
@@ -42,22 +42,24 @@ def log(msg):
     print(f"results.py: {msg}", file=sys.stderr, flush=True)
 
 
-REPLAY = False
+def read(path):
+    with open(path, encoding="utf-8") as f:
+        return f.read()
 
 
-def run(name, cmd, logs, env=None):
-    """Runs cmd in the source tree; its stdout, also kept as logs/name.log
+def run(a, name, cmd, env=None):
+    """Runs cmd in the source tree; its stdout, also kept as a.logs/name.log
     (with --replay, that file's text, nothing run)."""
-    if REPLAY:
-        with open(os.path.join(logs, f"{name}.log")) as f:
-            return f.read()
+    out = os.path.join(a.logs, f"{name}.log")
+    if a.replay:
+        return read(out)
     log(f"{name}: {' '.join(cmd)}")
     e = dict(os.environ, **(env or {}))
     p = subprocess.run(cmd, cwd=ROOT, env=e, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    with open(os.path.join(logs, f"{name}.log"), "w") as f:
+    with open(out, "w", encoding="utf-8") as f:
         f.write(p.stdout)
     if p.returncode != 0:
-        raise RuntimeError(f"{name}: exit {p.returncode}; see {logs}/{name}.log")
+        raise RuntimeError(f"{name}: exit {p.returncode}; see {out}")
     return p.stdout
 
 
@@ -73,11 +75,16 @@ def jsons(text):
     return out
 
 
-def num(pattern, text, kind=float):
+def groups(pattern, text):
+    """The groups of pattern's first match in text (RuntimeError if none)."""
     m = re.search(pattern, text)
     if not m:
         raise RuntimeError(f"no match for {pattern!r}")
-    return kind(m.group(1))
+    return m.groups()
+
+
+def num(pattern, text, kind=float):
+    return kind(groups(pattern, text)[0])
 
 
 def host():
@@ -113,29 +120,29 @@ def commit():
         return "unknown"
 
 
-def step_cloth(a, logs):
-    t = run("cloth", ["sh", "bench/cloth_vs_ref.sh", a.build, str(a.rounds), "100 256 1024"], logs)
+def step_cloth(a):
+    t = run(a, "cloth", ["sh", "bench/cloth_vs_ref.sh", a.build, str(a.rounds), "100 256 1024"])
     r = {"triad": num(r"STREAM triad, 1 thread: ([0-9.]+)", t), "sizes": {}}
     for m in re.finditer(r"cloth-(\d+) rk4: psys ([0-9.]+) ns, ref_cloth ([0-9.]+) ns per particle-step; psys/ref = "
                          r"([0-9.]+); floor ([0-9.]+) ns: psys ([0-9.]+)x", t):
         r["sizes"][int(m.group(1))] = [float(x) for x in m.groups()[1:]]
-    r["two"] = [float(x) for x in re.search(r"cloth-1024 rk4, 2 threads: ([0-9.]+) ns per particle-step; speed-up "
-                                            r"over 1 thread ([0-9.]+)", t).groups()]
+    r["two"] = [float(x) for x in groups(r"cloth-1024 rk4, 2 threads: ([0-9.]+) ns per particle-step; speed-up "
+                                         r"over 1 thread ([0-9.]+)", t)]
     return r
 
 
-def step_suite(a, logs):
-    return {(j["case"], j["integrator"]): j for j in jsons(run("suite", [f"{a.build}/psys", "bench"], logs))}
+def step_suite(a):
+    return {(j["case"], j["integrator"]): j for j in jsons(run(a, "suite", [f"{a.build}/psys", "bench"]))}
 
 
-def step_ceiling(a, logs):
-    return {j["case"]: j for j in jsons(run("ceiling", [f"{a.build}/spring_ceiling"], logs))}
+def step_ceiling(a):
+    return {j["case"]: j for j in jsons(run(a, "ceiling", [f"{a.build}/spring_ceiling"]))}
 
 
-def step_lj(a, logs):
-    if not REPLAY and not shutil.which("lmp"):
+def step_lj(a):
+    if not a.replay and not shutil.which("lmp"):
         raise FileNotFoundError("lmp (apt-get install lammps)")
-    js = jsons(run("lj", ["bash", "bench/lj_vs_lammps.sh", a.build, str(a.rounds), "1"], logs))
+    js = jsons(run(a, "lj", ["bash", "bench/lj_vs_lammps.sh", a.build, str(a.rounds), "1"]))
     atoms = next(j["atoms"] for j in js if j["case"] == "lj-melt")
     steps = next(j["steps"] for j in js if j["case"] == "lj-melt")
     last = [j for j in js if j["case"] == "lj-melt-vs-lammps"][-1]
@@ -145,32 +152,32 @@ def step_lj(a, logs):
             "rc": last["psys_over_lammps_check"]}
 
 
-def step_grid(a, logs):
-    return [j for j in jsons(run("grid", [f"{a.build}/pair_bench", "grid-scaling"], logs))
+def step_grid(a):
+    return [j for j in jsons(run(a, "grid", [f"{a.build}/pair_bench", "grid-scaling"]))
             if j["case"] == "grid-scaling-summary"][-1]
 
 
-def step_bh(a, logs):
-    js = jsons(run("bh", [f"{a.build}/pair_bench", "bh-crossover"], logs))
+def step_bh(a):
+    js = jsons(run(a, "bh", [f"{a.build}/pair_bench", "bh-crossover"]))
     sizes = [j for j in js if j["case"] == "bh-crossover"]
     return {"summary": [j for j in js if j["case"] == "bh-crossover-summary"][-1], "largest": sizes[-1],
             "err": (min(j["force_error"] for j in sizes), max(j["force_error"] for j in sizes))}
 
 
-def step_stiff(a, logs):
-    if not REPLAY and not os.path.exists("/usr/include/bullet/btBulletDynamicsCommon.h"):
+def step_stiff(a):
+    if not a.replay and not os.path.exists("/usr/include/bullet/btBulletDynamicsCommon.h"):
         raise FileNotFoundError("libbullet-dev")
-    t = run("stiff", ["bash", "bench/stiff_cloth.sh", a.build], logs, env={"OMP_NUM_THREADS": "1"})
+    t = run(a, "stiff", ["bash", "bench/stiff_cloth.sh", a.build], env={"OMP_NUM_THREADS": "1"})
     js = jsons(t)
-    head = re.search(r"# 4\. interleaved: bullet piterations=(\S+), implicit-euler dt=1/60 and dt=(\S+), "
-                     r"rk4 dt=(\S+)", t).groups()
-    med = re.search(r"# medians of (\d+): bullet ([0-9.]+) s, implicit-euler dt=1/60 ([0-9.]+) s, "
-                    r"implicit-euler dt=\S+ ([0-9.]+) s", t).groups()
+    head = groups(r"# 4\. interleaved: bullet piterations=(\S+), implicit-euler dt=1/60 and dt=(\S+), "
+                  r"rk4 dt=(\S+)", t)
+    med = groups(r"# medians of (\d+): bullet ([0-9.]+) s, implicit-euler dt=1/60 ([0-9.]+) s, "
+                 r"implicit-euler dt=\S+ ([0-9.]+) s", t)
     tail = t[t.index("# 4. interleaved"):]
     inter = jsons(tail)
-    it, big, rk = head
+    it, big, _rk = head
     if "none" in (it, big):
-        raise RuntimeError(f"stiff: no Bullet setting or implicit-euler step reached <= 2 % strain; see {logs}/stiff.log")
+        raise RuntimeError(f"no Bullet setting or implicit-euler step reached <= 2 % strain; see {a.logs}/stiff.log")
     strain = lambda solver, dt=None: next(  # noqa: E731
         j["mean_strain"] for j in inter
         if j.get("solver") == solver and (dt is None or abs(j.get("dt", 0) - dt) < 1e-6))
@@ -180,20 +187,20 @@ def step_stiff(a, logs):
             "s_big": strain("implicit-euler", float(big)), "rk4": rk4[-1] if rk4 else None}
 
 
-def step_callgrind(a, logs):
-    if not REPLAY and not shutil.which("valgrind"):
+def step_callgrind(a):
+    if not a.replay and not shutil.which("valgrind"):
         raise FileNotFoundError("valgrind")
     out = {}
     for n in (100, 256):
         tot = {}
         for k in (1, 5):  # 2 and 6 steps: the first builds the plan, so the difference is 4 steady steps
-            f = os.path.join(logs, f"callgrind.{n}.{k}")
-            if not REPLAY:
-                run(f"callgrind-{n}-{k}", ["valgrind", "--tool=callgrind", f"--callgrind-out-file={f}",
+            f = os.path.join(a.logs, f"callgrind.{n}.{k}")
+            if not a.replay:
+                run(a, f"callgrind-{n}-{k}", ["valgrind", "--tool=callgrind", f"--callgrind-out-file={f}",
                                            "--collect-atstart=no", "--toggle-collect=psys_solver_step",
                                            f"{a.build}/psys", "bench", f"cloth-{n}", "--steps", str(k), "--reps",
-                                           "1", "--bandwidth", "1"], logs, env={"OMP_NUM_THREADS": "1"})
-            tot[k] = num(r"totals: (\d+)", open(f).read(), int)
+                                           "1", "--bandwidth", "1"], env={"OMP_NUM_THREADS": "1"})
+            tot[k] = num(r"totals: (\d+)", read(f), int)
         out[n] = (tot[5] - tot[1]) / (4 * n * n)
     return out
 
@@ -236,11 +243,7 @@ def markdown(r, missing, when, com, hw, replay=None):
         o += ["", "**The whole suite** (`build/psys bench`, the default cases, medians of 5 repetitions):", "",
               "| case | rk4 | verlet | ns per spring evaluation (rk4, verlet) | rk4 / floor |",
               "| --- | --- | --- | --- | --- |"]
-        cases = []
-        for (case, _integ) in s:
-            if case not in cases:
-                cases.append(case)
-        for case in cases:
+        for case in dict.fromkeys(case for case, _integrator in s):  # in the suite's order
             rk, vv = s.get((case, "rk4")), s.get((case, "verlet"))
             cell = lambda j: f"{j['ns_per_particle_step']:,.2f} ns" if j else "—"  # noqa: E731
             se = [f"{j['ns_per_spring_eval']:.2f}" for j in (rk, vv) if j and j.get("ns_per_spring_eval")]
@@ -316,25 +319,24 @@ def main():
                     help="exit 1 unless FILE holds the printed section word for word (with --replay: the docs' "
                          "figures are those of the outputs kept)")
     a = ap.parse_args()
-    global REPLAY
-    REPLAY = a.replay
     if a.replay and not a.logs:
         ap.error("--replay needs --logs DIR")
     skip = {s for s in a.skip.split(",") if s}
     bad = skip - set(STEPS)
     if bad:
         ap.error(f"unknown step(s) {', '.join(sorted(bad))}; steps: {', '.join(STEPS)}")
-    if not os.path.exists(os.path.join(ROOT, a.build, "psys")):
+    if not a.replay and not os.path.exists(os.path.join(ROOT, a.build, "psys")):
         ap.error(f"{a.build}/psys not found: build first (make build)")
-    logs = a.logs or tempfile.mkdtemp(prefix="psys-results-")
-    os.makedirs(logs, exist_ok=True)
-    meta = os.path.join(logs, "meta.json")  # what the run was of, for --replay
+    a.logs = a.logs or tempfile.mkdtemp(prefix="psys-results-")
+    meta = os.path.join(a.logs, "meta.json")  # what the run was of, for --replay
     if a.replay:
-        with open(meta) as f:
-            m = json.load(f)
+        if not os.path.exists(meta):
+            ap.error(f"{meta} not found: --logs names no folder of a results.py run")
+        m = json.loads(read(meta))
     else:
+        os.makedirs(a.logs, exist_ok=True)
         m = {"date": datetime.date.today().isoformat(), "commit": commit(), "host": host()}
-        with open(meta, "w") as f:
+        with open(meta, "w", encoding="utf-8") as f:
             json.dump(m, f)
     when, com, hw = m["date"], m["commit"], m["host"]
     r, missing, failed = {"rounds": a.rounds}, {}, {}
@@ -342,22 +344,23 @@ def main():
         if name in skip:
             continue
         try:
-            r[name] = globals()[f"step_{name}"](a, logs)
+            r[name] = globals()[f"step_{name}"](a)
         except FileNotFoundError as e:
             missing[name] = f"needs {e.args[0] if e.args else e}"
             log(f"{name}: left out ({missing[name]})")
-        except (RuntimeError, OSError, KeyError, ValueError, StopIteration, AttributeError) as e:
+        except (RuntimeError, OSError, KeyError, ValueError, StopIteration) as e:  # a format it does not know
             failed[name] = f"failed: {e}"
             log(f"{name}: {failed[name]}")
-    rel = os.path.relpath(os.path.abspath(logs), ROOT)
-    text = markdown(r, {**missing, **failed}, when, com, hw, (logs if rel.startswith("..") else rel) if a.replay else None)
+    replayed = None
+    if a.replay:  # named as in the source tree, so the text is the same from any folder
+        rel = os.path.relpath(os.path.abspath(a.logs), ROOT)
+        replayed = a.logs if rel.startswith("..") else rel
+    text = markdown(r, {**missing, **failed}, when, com, hw, replayed)
     print(text)
-    log(f"raw outputs in {logs}")
-    if a.check:
-        with open(a.check, encoding="utf-8") as f:
-            if text not in f.read():
-                log(f"{a.check} does not hold this section as printed above")
-                return 1
+    log(f"raw outputs in {a.logs}")
+    if a.check and text not in read(a.check):
+        log(f"{a.check} does not hold this section as printed above")
+        return 1
     return 1 if failed else 0
 
 
