@@ -3,7 +3,8 @@
 # plain-C reference ../shared/peers/ref_cloth.c (gcc -O3 -march=native),
 # interleaved in one run; prints each side's median ns per particle-step and
 # their ratio per size. Usage: bench/cloth_vs_ref.sh [BUILD_DIR] [ROUNDS] [SIZES]
-# (defaults: build, 3, "100 256 1024"). Needs gcc; the host's load shows in
+# (defaults: build, 3, "100 256 1024"); BENCH_SECONDS (default 0.4) is each
+# repetition's length on both sides. Needs gcc; the host's load shows in
 # both sides alike, so compare the ratios, not the absolute times. Both
 # sides flush subnormal results to zero (ref_cloth with FTZ=1), or neither
 # with PSYS_FLUSH_SUBNORMALS=0.
@@ -11,10 +12,14 @@ set -eu
 BUILD=${1:-build}
 ROUNDS=${2:-3}
 SIZES=${3:-"100 256 1024"}
+SECS=${BENCH_SECONDS:-0.4}
+LARGEST=$(printf '%s\n' $SIZES | sort -n | tail -1)
 HERE=$(cd "$(dirname "$0")" && pwd)
 REF_SRC=${REF_SRC:-$HERE/../../shared/peers/ref_cloth.c}
 [ -f "$REF_SRC" ] || REF_SRC=/work/shared/peers/ref_cloth.c
-REF=${TMPDIR:-/tmp}/psys-ref_cloth
+WORK=$(mktemp -d)
+trap 'rm -rf "$WORK"' EXIT
+REF="$WORK/ref_cloth"
 gcc -O3 -march=native "$REF_SRC" -lm -o "$REF"
 export OMP_WAIT_POLICY=PASSIVE
 # like with like: psys flushes subnormal results to zero unless
@@ -26,25 +31,24 @@ BW=$("$BUILD/psys" bench cloth-100 --steps 1 --reps 1 | sed 's/.*"bandwidth_gbs"
 echo "# STREAM triad, 1 thread: $BW GB/s"
 median() { sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 for N in $SIZES; do
-  : > /tmp/psys-cvr-p1; : > /tmp/psys-cvr-p2; : > /tmp/psys-cvr-r
+  : > "$WORK/p1"; : > "$WORK/p2"; : > "$WORK/r"
   for r in $(seq "$ROUNDS"); do
-    "$BUILD/psys" bench cloth-$N --reps 3 --seconds 0.4 --bandwidth "$BW" --threads 1 | tee -a /tmp/psys-cvr-log \
-      | sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-p1
-    $REF_ENV "$REF" "$N" 3 0.4 | grep RESULT | sed 's/.*ns_per_particle_step=\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-r
-    if [ "$N" -ge 1024 ]; then
-      "$BUILD/psys" bench cloth-$N --reps 3 --seconds 0.4 --bandwidth "$BW" --threads 2 | tee -a /tmp/psys-cvr-log \
-        | sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/' >> /tmp/psys-cvr-p2
+    "$BUILD/psys" bench cloth-$N --reps 3 --seconds "$SECS" --bandwidth "$BW" --threads 1 | tee -a "$WORK/log" \
+      | sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/' >> "$WORK/p1"
+    $REF_ENV "$REF" "$N" 3 "$SECS" | grep RESULT | sed 's/.*ns_per_particle_step=\([0-9.]*\).*/\1/' >> "$WORK/r"
+    if [ "$N" -eq "$LARGEST" ]; then
+      "$BUILD/psys" bench cloth-$N --reps 3 --seconds "$SECS" --bandwidth "$BW" --threads 2 | tee -a "$WORK/log" \
+        | sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/' >> "$WORK/p2"
     fi
   done
-  P1=$(median < /tmp/psys-cvr-p1); R=$(median < /tmp/psys-cvr-r)
-  FLOOR=$(tail -n "$((ROUNDS * (N >= 1024 ? 2 : 1)))" /tmp/psys-cvr-log | head -1 | sed 's/.*"floor_ns_per_particle_step":\([0-9.]*\).*/\1/')
+  P1=$(median < "$WORK/p1"); R=$(median < "$WORK/r")
+  FLOOR=$(tail -n "$((ROUNDS * (N == LARGEST ? 2 : 1)))" "$WORK/log" | head -1 | sed 's/.*"floor_ns_per_particle_step":\([0-9.]*\).*/\1/')
   printf 'cloth-%s rk4: psys %s ns, ref_cloth %s ns per particle-step; psys/ref = %s; floor %s ns: psys %sx, ref %sx\n' \
     "$N" "$P1" "$R" "$(echo "$P1 $R" | awk '{printf "%.3f", $1/$2}')" "$FLOOR" \
     "$(echo "$P1 $FLOOR" | awk '{printf "%.2f", $1/$2}')" "$(echo "$R $FLOOR" | awk '{printf "%.2f", $1/$2}')"
-  if [ -s /tmp/psys-cvr-p2 ]; then
-    P2=$(median < /tmp/psys-cvr-p2)
+  if [ -s "$WORK/p2" ]; then
+    P2=$(median < "$WORK/p2")
     printf 'cloth-%s rk4, 2 threads: %s ns per particle-step; speed-up over 1 thread %s\n' "$N" "$P2" \
       "$(echo "$P1 $P2" | awk '{printf "%.2f", $1/$2}')"
   fi
 done
-rm -f /tmp/psys-cvr-p1 /tmp/psys-cvr-p2 /tmp/psys-cvr-r

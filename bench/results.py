@@ -3,6 +3,7 @@
 
     python3 bench/results.py [BUILD_DIR] [--logs DIR] [--skip STEP,...] [--rounds N]
     python3 bench/results.py [BUILD_DIR] --logs DIR --replay [--check FILE]   (print again from DIR)
+    python3 bench/results.py [BUILD_DIR] --quick [--logs DIR]                 (tiny sizes: does it all still run?)
 
 One command for every figure of the Results section, each peer interleaved
 with psys by the script that runs it, so the ratios hold within this run:
@@ -22,6 +23,11 @@ and keeps each program's raw output in --logs (default: a new folder under
 minutes on a 2-vCPU host; run it on a quiet machine. bench/results/ keeps
 the outputs behind bench/README.md's Results; the test docs.bench_results
 replays them and checks that the README holds what they print (--check).
+--quick runs every step at tiny sizes (cloth 8 and 16, 16×16 stiff cloth,
+the small pair-force sizes, one round; about a minute): its figures mean
+nothing, but it proves that every program and script still runs and that
+this file still reads what they print today (the test bench.results_quick).
+The peers' sources are looked for in $PEERS (default ../shared/peers).
 """
 import argparse
 import datetime
@@ -36,6 +42,7 @@ import tempfile
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 STEPS = ["cloth", "suite", "ceiling", "lj", "grid", "bh", "stiff", "callgrind"]
+PEERS = os.environ.get("PEERS", os.path.join(ROOT, "..", "shared", "peers"))
 
 
 def log(msg):
@@ -73,6 +80,15 @@ def jsons(text):
             except json.JSONDecodeError:
                 pass
     return out
+
+
+def peer(a, name):
+    """The path of the peer's source file name (FileNotFoundError, so the
+    step is left out, where it is not there)."""
+    path = os.path.abspath(os.path.join(PEERS, name))
+    if not a.replay and not os.path.exists(path):
+        raise FileNotFoundError(f"{name} of the peers (set PEERS)")
+    return path
 
 
 def groups(pattern, text):
@@ -121,28 +137,34 @@ def commit():
 
 
 def step_cloth(a):
-    t = run(a, "cloth", ["sh", "bench/cloth_vs_ref.sh", a.build, str(a.rounds), "100 256 1024"])
+    sizes, secs = ("8 16", "0.02") if a.quick else ("100 256 1024", "0.4")
+    t = run(a, "cloth", ["sh", "bench/cloth_vs_ref.sh", a.build, str(a.rounds), sizes],
+            env={"REF_SRC": peer(a, "ref_cloth.c"), "BENCH_SECONDS": secs})
     r = {"triad": num(r"STREAM triad, 1 thread: ([0-9.]+)", t), "sizes": {}}
     for m in re.finditer(r"cloth-(\d+) rk4: psys ([0-9.]+) ns, ref_cloth ([0-9.]+) ns per particle-step; psys/ref = "
                          r"([0-9.]+); floor ([0-9.]+) ns: psys ([0-9.]+)x", t):
         r["sizes"][int(m.group(1))] = [float(x) for x in m.groups()[1:]]
-    r["two"] = [float(x) for x in groups(r"cloth-1024 rk4, 2 threads: ([0-9.]+) ns per particle-step; speed-up "
-                                         r"over 1 thread ([0-9.]+)", t)]
+    n2, p2, sp = groups(r"cloth-(\d+) rk4, 2 threads: ([0-9.]+) ns per particle-step; speed-up over 1 thread "
+                        r"([0-9.]+)", t)
+    r["two"] = [int(n2), float(p2), float(sp)]
     return r
 
 
 def step_suite(a):
-    return {(j["case"], j["integrator"]): j for j in jsons(run(a, "suite", [f"{a.build}/psys", "bench"]))}
+    quick = ["--reps", "1", "--seconds", "0.01"] if a.quick else []
+    return {(j["case"], j["integrator"]): j for j in jsons(run(a, "suite", [f"{a.build}/psys", "bench"] + quick))}
 
 
 def step_ceiling(a):
-    return {j["case"]: j for j in jsons(run(a, "ceiling", [f"{a.build}/spring_ceiling"]))}
+    quick = ["16", "300"] if a.quick else []
+    return {j["case"]: j for j in jsons(run(a, "ceiling", [f"{a.build}/spring_ceiling"] + quick))}
 
 
 def step_lj(a):
     if not a.replay and not shutil.which("lmp"):
         raise FileNotFoundError("lmp (apt-get install lammps)")
-    js = jsons(run(a, "lj", ["bash", "bench/lj_vs_lammps.sh", a.build, str(a.rounds), "1"]))
+    js = jsons(run(a, "lj", ["bash", "bench/lj_vs_lammps.sh", a.build, str(a.rounds), "1"],
+                   env={"PEERS": os.path.dirname(peer(a, "in.lj"))}))
     atoms = next(j["atoms"] for j in js if j["case"] == "lj-melt")
     steps = next(j["steps"] for j in js if j["case"] == "lj-melt")
     last = [j for j in js if j["case"] == "lj-melt-vs-lammps"][-1]
@@ -153,12 +175,13 @@ def step_lj(a):
 
 
 def step_grid(a):
-    return [j for j in jsons(run(a, "grid", [f"{a.build}/pair_bench", "grid-scaling"]))
+    quick = ["--max-n", "4000", "--steps", "2"] if a.quick else []
+    return [j for j in jsons(run(a, "grid", [f"{a.build}/pair_bench", "grid-scaling"] + quick))
             if j["case"] == "grid-scaling-summary"][-1]
 
 
 def step_bh(a):
-    js = jsons(run(a, "bh", [f"{a.build}/pair_bench", "bh-crossover"]))
+    js = jsons(run(a, "bh", [f"{a.build}/pair_bench", "bh-crossover"] + (["--max-n", "1024"] if a.quick else [])))
     sizes = [j for j in js if j["case"] == "bh-crossover"]
     return {"summary": [j for j in js if j["case"] == "bh-crossover-summary"][-1], "largest": sizes[-1],
             "err": (min(j["force_error"] for j in sizes), max(j["force_error"] for j in sizes))}
@@ -167,7 +190,8 @@ def step_bh(a):
 def step_stiff(a):
     if not a.replay and not os.path.exists("/usr/include/bullet/btBulletDynamicsCommon.h"):
         raise FileNotFoundError("libbullet-dev")
-    t = run(a, "stiff", ["bash", "bench/stiff_cloth.sh", a.build], env={"OMP_NUM_THREADS": "1"})
+    env = {"OMP_NUM_THREADS": "1", "PEERS": os.path.dirname(peer(a, "bullet_cloth.cpp"))}
+    t = run(a, "stiff", ["bash", "bench/stiff_cloth.sh", a.build], env=dict(env, N="16", REPS="1") if a.quick else env)
     js = jsons(t)
     head = groups(r"# 4\. interleaved: bullet piterations=(\S+), implicit-euler dt=1/60 and dt=(\S+), "
                   r"rk4 dt=(\S+)", t)
@@ -191,7 +215,7 @@ def step_callgrind(a):
     if not a.replay and not shutil.which("valgrind"):
         raise FileNotFoundError("valgrind")
     out = {}
-    for n in (100, 256):
+    for n in (8, 16) if a.quick else (100, 256):
         tot = {}
         for k in (1, 5):  # 2 and 6 steps: the first builds the plan, so the difference is 4 steady steps
             f = os.path.join(a.logs, f"callgrind.{n}.{k}")
@@ -209,8 +233,8 @@ def f2(x):
     return f"{x:.2f}"
 
 
-def markdown(r, missing, when, com, hw, replay=None):
-    o = []
+def markdown(r, missing, when, com, hw, replay=None, quick=False):
+    o = ["**--quick: tiny sizes, one round; these figures mean nothing.**", ""] if quick else []
     hw = re.sub(r"\((R|TM)\)", "", hw)
     again = f"; printed again by `--replay` from its outputs in `{replay}`" if replay else ""
     o.append(f"The latest figures, all from one run of the commands `python3 bench/results.py` runs ({when}, commit "
@@ -235,8 +259,8 @@ def markdown(r, missing, when, com, hw, replay=None):
         for n, (p, ref, ratio, fl, pf) in sorted(c["sizes"].items()):
             t = target[n](p, fl) if n in target else "—"
             o.append(f"| cloth-{n} rk4 | {f2(p)} ns | {f2(ref)} ns | {ratio:.3f} | {f2(fl)} ns | {pf:.2f} | {t} |")
-        p2, sp = c["two"]
-        o.append(f"| cloth-1024 rk4, 2 threads | {f2(p2)} ns | — | — | — | — | ≥ 1.6 × one thread: **{sp:.2f} ×**, "
+        n2, p2, sp = c["two"]
+        o.append(f"| cloth-{n2} rk4, 2 threads | {f2(p2)} ns | — | — | — | — | ≥ 1.6 × one thread: **{sp:.2f} ×**, "
                  + ("met" if sp >= 1.6 else "not met") + " |")
     if "suite" in r:
         s = r["suite"]
@@ -278,9 +302,15 @@ def markdown(r, missing, when, com, hw, replay=None):
         if "bh" in r:
             b, L = r["bh"]["summary"], r["bh"]["largest"]
             lo, hi = r["bh"]["err"]
+            if b["crossover_n"] is not None:
+                cross = (f"faster from {b['crossover_n']:,} bodies (interpolated; first faster size "
+                         f"{b['first_faster_n']:,})")
+            elif b.get("crossover_below") is not None:
+                cross = f"faster at every size, from {b['crossover_below']:,} bodies"
+            else:
+                cross = f"not faster at the largest size, {b['crossover_above']:,} bodies"
             o.append(f"| Barnes–Hut θ {b['theta']:.1f} against direct sums, Plummer sphere (`build/pair_bench "
-                     f"bh-crossover`) | faster from {b['crossover_n']:,} bodies (interpolated; first faster size "
-                     f"{b['first_faster_n']:,}), {L['ratio']:.2f} × faster at {L['n']:,}; force error "
+                     f"bh-crossover`) | {cross}, {L['ratio']:.2f} × faster at {L['n']:,}; force error "
                      f"{100 * lo:.2f}–{100 * hi:.2f} % | — | — |")
     if "stiff" in r:
         s = r["stiff"]
@@ -302,7 +332,7 @@ def markdown(r, missing, when, com, hw, replay=None):
         c = r["callgrind"]
         o += ["", "**Callgrind** (instructions per particle-step, repeatable: "
                   "[below](#callgrind-instructions-per-particle-step-repeatable)): "
-                  f"**{c[100]:.0f} Ir** for cloth-100 and **{c[256]:.0f} Ir** for cloth-256 rk4."]
+                  + " and ".join(f"**{v:.0f} Ir** for cloth-{n}" for n, v in sorted(c.items())) + " rk4."]
     o += ["", "MPI scaling: [docs/mpi.md](../docs/mpi.md#measured-scaling-on-this-machine)."]
     return "\n".join(o)
 
@@ -313,6 +343,9 @@ def main():
     ap.add_argument("--logs", help="folder for the raw outputs (default: a new one under /tmp)")
     ap.add_argument("--skip", default="", help="comma-separated steps to leave out: " + ",".join(STEPS))
     ap.add_argument("--rounds", type=int, default=3, help="interleaved rounds of cloth and lj (default 3)")
+    ap.add_argument("--quick", action="store_true",
+                    help="every step at tiny sizes and one round: checks that it all runs and parses (figures "
+                         "meaningless)")
     ap.add_argument("--replay", action="store_true",
                     help="print the section again from the raw outputs already in --logs, running nothing")
     ap.add_argument("--check", metavar="FILE",
@@ -321,6 +354,10 @@ def main():
     a = ap.parse_args()
     if a.replay and not a.logs:
         ap.error("--replay needs --logs DIR")
+    if a.replay and a.quick:
+        ap.error("--quick runs the programs; --replay runs none")
+    if a.quick:
+        a.rounds = 1
     skip = {s for s in a.skip.split(",") if s}
     bad = skip - set(STEPS)
     if bad:
@@ -355,7 +392,7 @@ def main():
     if a.replay:  # named as in the source tree, so the text is the same from any folder
         rel = os.path.relpath(os.path.abspath(a.logs), ROOT)
         replayed = a.logs if rel.startswith("..") else rel
-    text = markdown(r, {**missing, **failed}, when, com, hw, replayed)
+    text = markdown(r, {**missing, **failed}, when, com, hw, replayed, a.quick)
     print(text)
     log(f"raw outputs in {a.logs}")
     if a.check and text not in read(a.check):

@@ -4,7 +4,8 @@
 #
 #   bash bench/stiff_cloth.sh [BUILD_DIR]
 #
-# The cloth of ../shared/peers/bullet_cloth.cpp: 100×100 nodes, 2 m × 2 m,
+# The cloth of ../shared/peers/bullet_cloth.cpp: N×N nodes (N=100 unless
+# set; smaller only to check that the script runs), 2 m × 2 m,
 # 1 kg, hanging from two corners of one edge, 1 s simulated. Needs
 # libbullet-dev (apt-get install libbullet-dev) and PEERS (default
 # ../shared/peers) holding bullet_cloth.cpp; psys's side is build/stiff_cloth.
@@ -22,7 +23,7 @@ REPS=${REPS:-3}
 KS=${KS:-100}          # structural stiffness (N/m): the softest giving <= 2% mean strain
 KD=${KD:-0.1}          # structural damping (N s/m); bend springs get ks/10, kd/10
 TOL=${TOL:-1e-2}       # cg_tolerance
-N=100
+N=${N:-100}
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 

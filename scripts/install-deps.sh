@@ -17,10 +17,13 @@ set -euo pipefail
 # lammps: Debian 12's LAMMPS (command `lmp`), for tests/cli/lammps.sh, which
 # runs a Lennard-Jones melt in LAMMPS and in psys (psys import lammps) and
 # compares their energies (skipped without it), and bench/lj_vs_lammps.sh.
+# valgrind, libbullet-dev and g++: bench/results.py's callgrind step and
+# bench/stiff_cloth.sh (Bullet's side), which the test bench.results_quick
+# runs at tiny sizes.
 PKGS=(cmake ninja-build pkg-config gcc make libc6-dev libcjson-dev libcairo2-dev fonts-dejavu-core ffmpeg libxml2-utils
       clang libclang-rt-14-dev
       libsdl2-dev libepoxy-dev libstb-dev libgl1-mesa-dri xvfb xauth xdotool x11-utils imagemagick jq
-      lammps mpich libmpich-dev python3)
+      lammps mpich libmpich-dev python3 valgrind libbullet-dev g++)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
