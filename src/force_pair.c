@@ -193,7 +193,8 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
             if (vec) /* forces only, pair_can_vectorise held */
                 pair_row_forces(p, law, d, m, w, i, NULL, j0, j1 - j0, false, acc[i - i0]);
             else
-                pair_gather_range(p, law, d, m, x, w, i, j0, j1, want_f, acc[i - i0], want_u, &us[i - i0]);
+                pair_gather(p, law, d, m, x, w, i, NULL, j0, j1 - j0, false, want_f, acc[i - i0], want_u,
+                            &us[i - i0]);
         }
     }
     for (size_t i = i0; i < i1; i++) {
@@ -281,7 +282,7 @@ typedef void (*grid_fn)(const pair_force *p, const pair_image *m, const double *
             if (mark && !mark[i])                                                                            \
                 continue;                                                                                    \
             double acc[3] = {0, 0, 0}, us = 0;                                                               \
-            pair_gather_list(p, LAW, D, m, x, w, i, nb + st[i], num[i], WF, acc, WU, &us);                   \
+            pair_gather(p, LAW, D, m, x, w, i, nb + st[i], 0, num[i], true, WF, acc, WU, &us);                 \
             if (WF)                                                                                          \
                 for (int k = 0; k < D; k++)                                                                  \
                     out[i * D + k] = acc[k];                                                                 \

@@ -142,6 +142,19 @@ static int literal(cursor *c, const char *word)
     return 1;
 }
 
+/* An object member's name and its colon, with the space after it. */
+static int member_name(cursor *c)
+{
+    if (!string(c))
+        return 0;
+    skip_ws(c);
+    if (c->i >= c->n || c->s[c->i] != ':')
+        return 0;
+    c->i++;
+    skip_ws(c);
+    return 1;
+}
+
 int psys__json_check(const char *text, size_t len, int max_depth, size_t *where)
 {
     enum { MAX_STACK = 4096 };
@@ -171,15 +184,8 @@ int psys__json_check(const char *text, size_t len, int max_depth, size_t *where)
                 c.i++;
                 depth--;
             } else {
-                if (ch == '{') {
-                    if (!string(&c))
-                        goto done;
-                    skip_ws(&c);
-                    if (c.i >= c.n || c.s[c.i] != ':')
-                        goto done;
-                    c.i++;
-                    skip_ws(&c);
-                }
+                if (ch == '{' && !member_name(&c))
+                    goto done;
                 continue; /* the first element's value */
             }
         } else if (ch == '"') {
@@ -210,15 +216,8 @@ int psys__json_check(const char *text, size_t len, int max_depth, size_t *where)
                 goto done;
             c.i++;
             skip_ws(&c);
-            if (open == '{') {
-                if (!string(&c))
-                    goto done;
-                skip_ws(&c);
-                if (c.i >= c.n || c.s[c.i] != ':')
-                    goto done;
-                c.i++;
-                skip_ws(&c);
-            }
+            if (open == '{' && !member_name(&c))
+                goto done;
             break; /* the next element's value */
         }
     }

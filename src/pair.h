@@ -292,20 +292,23 @@ PAIR_INLINE double pair_plain_r2(const int d, double dx0, double dx1, double dx2
     return r2;
 }
 
-/* Gather over an ascending list js[0..nj) for particle i: force sum into
- * acc (dim numbers, not cleared) and energy sum into *uacc. w: per-particle
+/* Gather for particle i over its partners, js[0..nj) (ascending) when
+ * `list`, else the index range [j0, j0 + nj) without i: force sum into acc
+ * (dim numbers, not cleared) and energy sum into *uacc. w: per-particle
  * weights (NULL = 1). */
-PAIR_INLINE void pair_gather_list(const pair_force *p, const int law, const int d, const pair_image *m,
-                                  const double *restrict x, const double *restrict w, size_t i,
-                                  const uint32_t *restrict js, size_t nj, const bool want_f, double *acc,
-                                  const bool want_u, double *uacc)
+PAIR_INLINE void pair_gather(const pair_force *p, const int law, const int d, const pair_image *m,
+                             const double *restrict x, const double *restrict w, size_t i,
+                             const uint32_t *restrict js, size_t j0, size_t nj, const bool list, const bool want_f,
+                             double *acc, const bool want_u, double *uacc)
 {
     double xi[3] = {0, 0, 0}, a[3] = {acc[0], acc[1], d == 3 ? acc[2] : 0}, us = *uacc;
     for (int k = 0; k < d; k++)
         xi[k] = x[i * d + k];
     const double wi = w ? w[i] : 1.0;
     for (size_t t = 0; t < nj; t++) {
-        size_t j = js[t];
+        const size_t j = list ? js[t] : j0 + t;
+        if (!list && j == i)
+            continue;
         double dx[3] = {0, 0, 0};
         for (int k = 0; k < d; k++)
             dx[k] = pair_delta(m, k, xi[k] - x[j * d + k]);
@@ -360,12 +363,12 @@ PAIR_INLINE bool pair_row_terms(const pair_force *pk, const int law, const int d
     return far != 0;
 }
 
-/* pair_gather_list for forces only, in two passes per block of ROW_BLOCK
+/* pair_gather for forces only, in two passes per block of ROW_BLOCK
  * partners: each pair's g and dx, computed independently (the loop
  * vectorises), then the terms g·dx fused into the sums in list order. The
  * operations per pair and the order of the sum are those of
- * pair_gather_list, so the bits are the same; acc starts the sum as there. Partners: js[0..nj) when `list`, else
- * the index range [j0, j0 + nj) without i (pair_gather_range's sum).
+ * pair_gather, so the bits are the same; acc starts the sum as there. Partners as in
+ * pair_gather.
  * Weights: w[i]·w[j] for gravity and coulomb (w must not be NULL then),
  * none for the other laws. */
 PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d, const pair_image *m,
@@ -396,7 +399,7 @@ PAIR_INLINE void pair_row_forces(const pair_force *p, const int law, const int d
         const size_t jr = j0 + t0;
         if (pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, cg, c0, c1, c2, false))
             pair_row_terms(&pk, law, d, X0, X1, X2, w, i, jb, jr, nb, list, hl, ln, il, fr, cg, c0, c1, c2, true);
-        /* a range holding i sums around it, as pair_gather_range skips it */
+        /* a range holding i sums around it, as pair_gather skips it */
         const size_t skip = !list && i >= jr && i < jr + nb ? i - jr : nb;
         for (size_t t = 0; t < skip; t++) {
             a0 = fma(cg[t], c0[t], a0);
@@ -437,35 +440,6 @@ PAIR_INLINE void pair_soa_positions(const pair_force *p, const double *restrict 
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < d; k++)
             X[(size_t)k * cs + i] = x[i * (size_t)d + (size_t)k];
-}
-
-/* Same over the index range [j0, j1), skipping i. */
-PAIR_INLINE void pair_gather_range(const pair_force *p, const int law, const int d, const pair_image *m,
-                                   const double *restrict x, const double *restrict w, size_t i, size_t j0,
-                                   size_t j1, const bool want_f, double *acc, const bool want_u, double *uacc)
-{
-    double xi[3] = {0, 0, 0}, a[3] = {acc[0], acc[1], d == 3 ? acc[2] : 0}, us = *uacc;
-    for (int k = 0; k < d; k++)
-        xi[k] = x[i * d + k];
-    const double wi = w ? w[i] : 1.0;
-    for (size_t j = j0; j < j1; j++) {
-        if (j == i)
-            continue;
-        double dx[3] = {0, 0, 0};
-        for (int k = 0; k < d; k++)
-            dx[k] = pair_delta(m, k, xi[k] - x[j * d + k]);
-        const double r2 = want_f ? pair_force_r2(d, dx[0], dx[1], dx[2]) : pair_plain_r2(d, dx[0], dx[1], dx[2]);
-        double u = 0;
-        double g = pair_kernel(p, law, r2, w ? wi * w[j] : 1.0, want_u, &u);
-        if (want_f)
-            for (int k = 0; k < d; k++)
-                a[k] = fma(g, dx[k], a[k]);
-        if (want_u)
-            us += u;
-    }
-    for (int k = 0; k < d; k++)
-        acc[k] = a[k];
-    *uacc = us;
 }
 
 /* Threads for a loop of about `work` pair evaluations. */
