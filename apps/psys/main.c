@@ -55,7 +55,7 @@ static const char usage[] =
     "  --mpi MODE        under mpiexec (MPI builds): domain (each rank holds the particles\n"
     "                    of its box of space and ghosts), replicated (every rank holds every\n"
     "                    particle), auto (domain where the scene allows it; default)\n"
-    "  --quiet           no progress bar and no interruption notice\n"
+    "  --quiet, -q       no progress bar, no interruption notice and no warnings\n"
     "\n"
     "view options (keys and mouse: H in the viewer, docs/cli.md):\n"
     "  --save FILE       where Ctrl+S saves (default: SCENE, or untitled.json)\n"
@@ -89,7 +89,13 @@ int main(int argc, char **argv)
         return EXIT_BAD_INPUT;
     }
     const char *cmd = argv[1];
-    if (strcmp(cmd, "--help") == 0 || strcmp(cmd, "-h") == 0 || strcmp(cmd, "help") == 0) {
+    /* psys --help, and psys COMMAND --help (the viewer prints its own) */
+    static const char *const helped[] = {"run", "check", "bench", "plot", "import"};
+    bool sub_help = false;
+    const bool help_arg = argc > 2 && (strcmp(argv[2], "--help") == 0 || strcmp(argv[2], "-h") == 0);
+    for (size_t i = 0; i < sizeof helped / sizeof helped[0] && help_arg; i++)
+        sub_help = sub_help || strcmp(cmd, helped[i]) == 0;
+    if (strcmp(cmd, "--help") == 0 || strcmp(cmd, "-h") == 0 || strcmp(cmd, "help") == 0 || sub_help) {
         fputs(usage, stdout);
         fputs(usage_end, stdout);
         return EXIT_OK;

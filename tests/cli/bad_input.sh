@@ -420,6 +420,16 @@ done
 for integ in euler midpoint rk4 symplectic-euler verlet rk45; do
     check "--help names the integrator $integ" grep -qw -e "$integ" out.txt
 done
+cp out.txt help.txt
+for cmd in run check bench plot import; do
+    for h in --help -h; do
+        psys "$cmd" "$h"
+        expect_rc 0 "$cmd $h"
+        check "$cmd $h prints psys --help" cmp -s out.txt help.txt
+    done
+done
+psys frobnicate --help
+expect_rc 2 "frobnicate --help"
 
 psys --version
 expect_rc 0 "--version"
