@@ -42,6 +42,7 @@ struct sink {
     int fd;
     /* built-in GIF */
     gif_writer *gif;
+    bool failed; /* a frame could not be written: sink_close keeps nothing */
 };
 
 static const char *ext_of(const char *path)
@@ -394,7 +395,7 @@ static int write_pattern_frame(sink *s, renderer *r)
     return rc;
 }
 
-int sink_frame(sink *s, renderer *r)
+static int put_frame(sink *s, renderer *r)
 {
     int stride;
     const unsigned char *px;
@@ -438,8 +439,23 @@ int sink_frame(sink *s, renderer *r)
     return 0;
 }
 
+int sink_frame(sink *s, renderer *r)
+{
+    if (s->failed || put_frame(s, r) != 0) {
+        s->failed = true;
+        return -1;
+    }
+    return 0;
+}
+
 int sink_close(sink *s, renderer *r)
 {
+    /* After a failed frame ffmpeg may be gone (and reaped) with a file that
+     * must not replace the target: nothing is kept. */
+    if (s->failed) {
+        sink_abort(s);
+        return -1;
+    }
     int rc = 0;
     switch (s->kind) {
     case SINK_PNG:

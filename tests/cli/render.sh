@@ -226,6 +226,21 @@ if [ "$HAVE_FFMPEG" = 1 ]; then
     expect_no_tmp "interrupted MP4"
 fi
 
+# An ffmpeg that reads the first frame (32x32 BGRA: 4,096 bytes) and fails:
+# the 30 frames (120 KB) overfill the pipe, so a later frame cannot be
+# written for certain, after one was. The run exits 1 and neither replaces
+# the video that was there nor leaves an empty one or a temporary file.
+printf '#!/bin/sh\nhead -c 4096 >/dev/null\nexit 1\n' >failing-ffmpeg
+chmod +x failing-ffmpeg
+sentinel kept.mp4
+PSYS_FFMPEG=$PWD/failing-ffmpeg psys run swing.json --render kept.mp4 --size 32x32
+expect_rc 1 "MP4 whose ffmpeg fails"
+expect_untouched kept.mp4 "MP4 whose ffmpeg fails"
+PSYS_FFMPEG=$PWD/failing-ffmpeg psys run swing.json --render new.mp4 --size 32x32
+expect_rc 1 "new MP4 whose ffmpeg fails"
+check "no new.mp4 after ffmpeg failed" test ! -e new.mp4
+expect_no_tmp "MP4 whose ffmpeg fails"
+
 # Without ffmpeg an MP4 cannot be made: the run does not start.
 export PSYS_FFMPEG=/nonexistent/ffmpeg
 cannot_start "MP4 without ffmpeg" \
