@@ -31,6 +31,11 @@ int outfile_open(outfile *o, const char *path, const char *what);
 int outfile_commit(outfile *o);
 /** Close and delete the temporary file (no-op if not open). */
 void outfile_abort(outfile *o);
+/** Whether paths a and b (either may be NULL) name the same regular file,
+ *  existing or not: the same name after resolving links and the directory
+ *  ("./x" and "x"), or one file under two names (hard links). Devices and
+ *  pipes (/dev/null twice) are not the same file. */
+bool cli_same_file(const char *a, const char *b);
 
 /** Warn on stderr (unless quiet) when an explicit fixed-step solver's dt
  *  exceeds 2/omega_max of the stiffest spring (psys_system_stiffest_omega);

@@ -177,6 +177,10 @@ int cmd_import(int argc, char **argv)
     if (parse_args(argc, argv, &o) != 0 || check_values(&o, &v) != 0)
         return EXIT_BAD_INPUT;
     const char *name = strcmp(o.input, "-") == 0 ? "<stdin>" : o.input;
+    if (strcmp(o.input, "-") != 0 && strcmp(o.out, "-") != 0 && cli_same_file(o.input, o.out)) {
+        cli_error("%s: --out would replace the data file it reads", o.out);
+        return EXIT_BAD_INPUT;
+    }
     lmp_data d;
     char msg[700];
     if (lmp_data_read(o.input, o.epsilon != NULL, &d, msg, sizeof msg) != 0) {

@@ -97,6 +97,10 @@ int cmd_plot(int argc, char **argv)
         cli_error("--out %s: psys plot writes PNG (use a name ending in .png)", o.out);
         return EXIT_BAD_INPUT;
     }
+    if (strcmp(o.file, "-") != 0 && cli_same_file(o.file, o.out)) {
+        cli_error("%s: --out would replace the file it reads", o.out);
+        return EXIT_BAD_INPUT;
+    }
     int W = 800, H = 600;
     if (o.size && parse_size(o.size, &W, &H) != 0) {
         cli_error("--size: must be WIDTHxHEIGHT, each from 16 to 8192 (got %s)", o.size);

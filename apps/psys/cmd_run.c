@@ -485,9 +485,6 @@ static int write_checkpoint(outfile *o, const psys_scene *scene, const psys_run 
     return outfile_commit(o);
 }
 
-/* Two outputs written to one file would silently clobber each other. */
-static int same_path(const char *a, const char *b) { return a && b && a[0] && strcmp(a, b) == 0; }
-
 static const char *display_name(const char *path) { return strcmp(path, "-") == 0 ? "<stdin>" : path; }
 
 /* ---------------------------------------------------------------- framing */
@@ -700,15 +697,29 @@ static int open_outputs(const run_opts *o, const psys_settings *set, const pictu
         traj_path = pvd;
     }
     const char *render_path = set->render[0] && pic->kind != SINK_PATTERN ? set->render : NULL;
+    /* Two outputs written to one file would silently clobber each other,
+     * and an output naming the scene read would replace it (a checkpoint
+     * may: it is a scene, and `--resume ck.json --checkpoint ck.json` goes
+     * on in place). */
     const char *paths[5] = {traj_path, set->energy[0] ? set->energy : NULL, o->checkpoint, render_path, o->plot};
-    for (int i = 0; i < 5; i++)
+    static const char *const what[5] = {"the trajectory", "the energy file", "the checkpoint", "the picture",
+                                        "the plot"};
+    const char *inputs[2] = {o->scene && strcmp(o->scene, "-") != 0 ? o->scene : NULL, o->resume};
+    for (int i = 0; i < 5; i++) {
         for (int j = i + 1; j < 5; j++)
-            if (same_path(paths[i], paths[j])) {
+            if (cli_same_file(paths[i], paths[j])) {
                 cli_error("%s: the trajectory, energy, checkpoint, render and plot files must be different files",
                           paths[i]);
                 free(pvd);
                 return -1;
             }
+        for (int k = 0; k < 2 && i != 2; k++)
+            if (cli_same_file(paths[i], inputs[k])) {
+                cli_error("%s: %s would replace the %s it reads", paths[i], what[i], k ? "checkpoint" : "scene");
+                free(pvd);
+                return -1;
+            }
+    }
     const char *energy_label = o->energy ? "--energy" : "output.energy";
     int bad = (traj_path && outfile_open(&out->traj, traj_path, out->label) != 0)
               || (set->energy[0] && outfile_open(&out->energy, set->energy, energy_label) != 0)

@@ -25,6 +25,53 @@ void cli_error(const char *fmt, ...)
     fputc('\n', stderr);
 }
 
+/* path with its directory resolved and, where it exists, links followed
+ * (as outfile_open writes through them); NULL if the directory cannot be
+ * resolved or out of memory. */
+static char *canonical(const char *path)
+{
+    char *r = realpath(path, NULL);
+    if (r)
+        return r;
+    const char *slash = strrchr(path, '/');
+    const char *base = slash ? slash + 1 : path;
+    size_t dlen = slash ? (slash == path ? 1 : (size_t)(slash - path)) : 1;
+    char *dir = malloc(dlen + 1);
+    if (!dir)
+        return NULL;
+    memcpy(dir, slash ? path : ".", dlen);
+    dir[dlen] = '\0';
+    char *rd = realpath(dir, NULL);
+    free(dir);
+    if (!rd)
+        return NULL;
+    size_t n = strlen(rd) + strlen(base) + 2;
+    char *out = malloc(n);
+    if (out)
+        snprintf(out, n, "%s/%s", strcmp(rd, "/") == 0 ? "" : rd, base);
+    free(rd);
+    return out;
+}
+
+bool cli_same_file(const char *a, const char *b)
+{
+    if (!a || !b || !a[0] || !b[0])
+        return false;
+    struct stat sa, sb;
+    bool ea = stat(a, &sa) == 0, eb = stat(b, &sb) == 0;
+    if ((ea && !S_ISREG(sa.st_mode)) || (eb && !S_ISREG(sb.st_mode)))
+        return false; /* /dev/null, a pipe: written directly, never replaced */
+    if (ea && eb)
+        return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+    if (strcmp(a, b) == 0)
+        return true;
+    char *ca = canonical(a), *cb = canonical(b);
+    bool same = ca && cb && strcmp(ca, cb) == 0;
+    free(ca);
+    free(cb);
+    return same;
+}
+
 int outfile_open(outfile *o, const char *path, const char *what)
 {
     memset(o, 0, sizeof *o);

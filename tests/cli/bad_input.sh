@@ -348,6 +348,35 @@ bad_flags 'missing value (steps)' '--steps needs a value (see psys --help)' --st
 bad_flags 'two scenes' 'run: more than one scene given (good.json and other.json)' other.json
 bad_flags 'unknown format' '--out x.txt: unknown trajectory format (got ".txt"; use .csv, .vtp, .vtk or .xyz)' --out x.txt
 
+# One file under two names is one file: outputs are compared as files, not
+# as strings; and no output may replace the scene or checkpoint read (a
+# checkpoint may: --resume ck --checkpoint ck goes on in place).
+bad_flags 'one file, two spellings' \
+    'out.csv: the trajectory, energy, checkpoint, render and plot files must be different files' --energy ./out.csv
+bad_flags 'one file, through its directory' \
+    'out.csv: the trajectory, energy, checkpoint, render and plot files must be different files' --energy "$PWD/out.csv"
+prepare
+ln -f en.csv hard.csv
+psys run good.json --out out.csv --energy en.csv --checkpoint hard.csv
+expect_rc 2 "one file under two hard links"
+expect_stderr 'psys: en.csv: the trajectory, energy, checkpoint, render and plot files must be different files' \
+    "one file under two hard links"
+nothing_written "one file under two hard links"
+ln -sf out.csv soft.csv
+psys run good.json --out out.csv --energy soft.csv
+expect_rc 2 "a file and a link to it"
+nothing_written "a file and a link to it"
+rm -f hard.csv soft.csv
+cp good.json good.json.orig
+bad_flags 'the energy file names the scene' 'good.json: the energy file would replace the scene it reads' --energy good.json
+expect_untouched good.json "the energy file names the scene"
+psys run good.json --steps 2 --checkpoint inplace.json
+psys run --resume inplace.json --steps 2 --checkpoint inplace.json
+expect_rc 0 "--resume and --checkpoint of one file go on in place"
+check "the checkpoint went on in place (step 4)" grep -q '"step":[[:space:]]*4' inplace.json
+psys run good.json --energy /dev/null --checkpoint /dev/null
+expect_rc 0 "/dev/null twice is allowed"
+
 # Bad flags must fail before the scene is even looked at... or after: either
 # way a bad scene plus a good flag still writes nothing (covered above), and
 # a good scene plus a bad flag writes nothing (covered here).

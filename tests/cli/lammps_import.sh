@@ -165,6 +165,9 @@ usage() { # EXPECTED-STDERR ARGS...
     expect_stderr "$want" "import $*"
 }
 usage 'psys: import: unknown format (got gromacs; known: lammps)' gromacs good.data --out x.json
+cp good.data good.data.orig
+usage 'psys: ./good.data: --out would replace the data file it reads' lammps good.data --out ./good.data
+check "import --out naming its input leaves it" cmp -s good.data good.data.orig
 usage 'psys: import: no --out file given (usage: psys import lammps FILE.data --out SCENE.json [options]; see psys --help)' lammps good.data
 usage 'psys: import: give --epsilon and --sigma together' lammps good.data --out x.json --epsilon 1
 usage 'psys: --cutoff: must be a finite number > 0 (got -1)' lammps good.data --out x.json --cutoff -1
