@@ -241,6 +241,13 @@ expect_rc 1 "new MP4 whose ffmpeg fails"
 check "no new.mp4 after ffmpeg failed" test ! -e new.mp4
 expect_no_tmp "MP4 whose ffmpeg fails"
 
+# A radius of 1e300 (the markers cover the picture) renders at once; cairo's
+# arcs of that radius took minutes and ignored SIGTERM meanwhile.
+timeout 120 "$PSYS" run swing.json --render huge.png --size 64x64 --radius 1e300 >out.txt 2>err.txt
+RC=$?
+expect_rc 0 "--radius 1e300"
+expect_exists huge.png "--radius 1e300"
+
 # Without ffmpeg an MP4 cannot be made: the run does not start.
 export PSYS_FFMPEG=/nonexistent/ffmpeg
 cannot_start "MP4 without ffmpeg" \
