@@ -5,6 +5,7 @@
 
 #include <cjson/cJSON.h>
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -369,6 +370,12 @@ static psys_status parse_particle(psys__parse *p, const cJSON *obj, const char *
         || (st = parse_bool(p, obj, path, "fixed", &fixed)) != PSYS_OK
         || (st = psys__parse_number(p, obj, path, "charge", true, 0, -INFINITY, false, &charge)) != PSYS_OK)
         return st;
+    if (mass < DBL_MIN) { /* subnormal: 1/mass would be infinite */
+        char mp[256];
+        key_path(mp, sizeof mp, path, "mass");
+        return psys__parse_fail(p, mp, cJSON_GetObjectItemCaseSensitive(obj, "mass"),
+                                "must be at least %.17g (a normal number, so that 1/mass is finite)", DBL_MIN);
+    }
     size_t i;
     if (psys_system_add_particle(p->sys, x, v, mass, id ? id->valuestring : NULL, &i) != PSYS_OK)
         return psys__fail(p->err, p->sys->err.code, "%s: %s", path, psys_system_last_error(p->sys));

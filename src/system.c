@@ -2,6 +2,7 @@
 #include "internal.h"
 #include "solver.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -173,8 +174,9 @@ psys_status psys_system_add_particle(psys_system *s, const double *x, const doub
     int d = s->dim;
     if (!x || !all_finite(x, d) || (v && !all_finite(v, d)))
         return psys__fail(&s->err, PSYS_ERR_INVALID, "particle position and velocity must be finite");
-    if (!(mass > 0) || !isfinite(mass))
-        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle mass must be a finite number > 0 (got %g)", mass);
+    if (!(mass >= DBL_MIN) || !isfinite(mass)) /* DBL_MIN: 1/mass finite */
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle mass must be a finite number > 0 and normal (got %g)",
+                          mass);
     if (id) {
         size_t dup;
         if (psys_system_find(s, id, &dup) == PSYS_OK)
@@ -205,8 +207,9 @@ psys_status psys__system_add_particle_unique(psys_system *s, const double *x, co
     int d = s->dim;
     if (!x || !all_finite(x, d) || (v && !all_finite(v, d)))
         return psys__fail(&s->err, PSYS_ERR_INVALID, "particle position and velocity must be finite");
-    if (!(mass > 0) || !isfinite(mass))
-        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle mass must be a finite number > 0 (got %g)", mass);
+    if (!(mass >= DBL_MIN) || !isfinite(mass)) /* DBL_MIN: 1/mass finite */
+        return psys__fail(&s->err, PSYS_ERR_INVALID, "particle mass must be a finite number > 0 and normal (got %g)",
+                          mass);
     if (reserve(s, s->n + 1) != PSYS_OK)
         return PSYS_ERR_NOMEM;
     char *copy = NULL;

@@ -2,6 +2,7 @@
  * (docs/cli.md "Camera"). Pure geometry: no cairo here. */
 #include "render.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -31,7 +32,7 @@ static int num(const char *s, double *out)
     char *end;
     errno = 0;
     double v = strtod(s, &end);
-    if (end == s || *end || errno || !isfinite(v))
+    if (end == s || *end || errno || !isfinite(v) || strpbrk(s, "xX") || isspace((unsigned char)*s)) /* decimal only */
         return -1;
     *out = v;
     return 0;
@@ -118,7 +119,7 @@ static int parse_item(char *item, camera_spec *s, char *why, size_t cap)
         s->extent = v;
     } else if (strcmp(key, "zoom") == 0) {
         if (num(val, &v) != 0 || !(v > 0) || v > 1e6) {
-            snprintf(why, cap, "zoom= must be a number > 0 (got %s)", val);
+            snprintf(why, cap, "zoom= must be a number > 0 and at most 1e6 (got %s)", val);
             return -1;
         }
         s->zoom = v;

@@ -44,6 +44,9 @@ void cli_stability_warning(const char *source, psys_scene *scene, int quiet);
 
 /** Parse a strictly positive finite double; returns -1 if s is not one. */
 int parse_positive(const char *s, double *out);
+/** strtod for decimal numbers only: hexadecimal ("0x10") and leading space
+ *  leave *end at s (not a number), as in JSON. */
+double cli_strtod(const char *s, char **end);
 /* Read all of fp into a NUL-terminated buffer, its length into *len; NULL on failure. */
 char *cli_read_all(FILE *fp, size_t *len);
 /** Parse a non-negative finite double. */

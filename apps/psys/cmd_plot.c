@@ -195,7 +195,7 @@ int cmd_plot(int argc, char **argv)
         for (int k = 0; k < nn; k++) {
             char *end;
             errno = 0;
-            v[k] = strtod(f[need[k]], &end);
+            v[k] = cli_strtod(f[need[k]], &end);
             if (end == f[need[k]] || *end) {
                 cli_error("%s: line %zu: column \"%s\" is not a number (got \"%s\")", name, line, names[need[k]],
                           f[need[k]]);

@@ -150,7 +150,7 @@ static int to_double(const char *s, double *out)
     char *end;
     errno = 0;
     double v = strtod(s, &end);
-    if (end == s || *end || !isfinite(v))
+    if (end == s || *end || !isfinite(v) || strpbrk(s, "xX")) /* decimal only, as LAMMPS writes */
         return -1;
     /* strtod's ERANGE for subnormal results is fine; overflow gave inf above. */
     *out = v;

@@ -101,6 +101,10 @@ int main(int argc, char **argv)
         return EXIT_OK;
     }
     if (strcmp(cmd, "--version") == 0) {
+        if (argc > 2) {
+            cli_error("--version takes no arguments (got %s)", argv[2]);
+            return EXIT_BAD_INPUT;
+        }
         printf("psys %s\n", PSYS_VERSION_STRING);
         return EXIT_OK;
     }

@@ -1,6 +1,7 @@
 /* Messages, number parsing and atomic output files for the CLI. */
 #include "cli.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdarg.h>
@@ -183,11 +184,20 @@ void cli_stability_warning(const char *source, psys_scene *scene, int quiet)
               source, set->dt, 2.0 / omega, set->integrator, omega, 2.0 / omega);
 }
 
+double cli_strtod(const char *s, char **end)
+{
+    if (isspace((unsigned char)*s) || strpbrk(s, "xX")) {
+        *end = (char *)s;
+        return 0;
+    }
+    return strtod(s, end);
+}
+
 int parse_nonneg(const char *s, double *out)
 {
     char *end;
     errno = 0;
-    double v = strtod(s, &end);
+    double v = cli_strtod(s, &end);
     if (end == s || *end || errno || !isfinite(v) || v < 0)
         return -1;
     *out = v;

@@ -302,7 +302,7 @@ double psys_system_time(const psys_system *sys);
 /** Set the simulation clock. */
 void psys_system_set_time(psys_system *sys, double t);
 
-/** Add a particle; v may be NULL (zero), id may be NULL; mass > 0. */
+/** Add a particle; v may be NULL (zero), id may be NULL; mass finite and at least DBL_MIN (1/mass finite). */
 psys_status psys_system_add_particle(psys_system *sys, const double *x, const double *v,
                                      double mass, const char *id, size_t *index);
 /** Find a particle by id. */

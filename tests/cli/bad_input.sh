@@ -185,6 +185,8 @@ bad_scene mass_zero '{"psys": 1, "dim": 2, "particles": [{"x": [0, 0], "mass": 0
     'particles[0].mass: must be > 0 (got 0)'
 bad_scene mass_negative '{"psys": 1, "dim": 2, "particles": [{"x": [0, 0]}, {"x": [0, 0], "mass": -1.5}]}' \
     'particles[1].mass: must be > 0 (got -1.5)'
+bad_scene mass_subnormal '{"psys": 1, "dim": 2, "particles": [{"x": [0, 0], "mass": 1e-320}]}' \
+    'particles[0].mass: must be at least 2.2250738585072014e-308 (a normal number, so that 1/mass is finite) (got 9.99988867182683e-321)'
 bad_scene mass_string '{"psys": 1, "dim": 2, "particles": [{"x": [0, 0], "mass": "1"}]}' \
     'particles[0].mass: must be a number (got "1")'
 bad_scene ks_negative '{"psys": 1, "dim": 2, '"$P2"', "forces": [{"type": "spring", "a": 0, "b": 1, "ks": -1}]}' \
@@ -459,6 +461,10 @@ for cmd in run check bench plot import; do
 done
 psys frobnicate --help
 expect_rc 2 "frobnicate --help"
+psys --version extra
+expect_rc 2 "--version extra"
+expect_stderr 'psys: --version takes no arguments (got extra)' "--version extra"
+bad_flags 'hexadecimal dt' '--dt: must be a finite number > 0 (got 0x10)' --dt 0x10
 
 psys --version
 expect_rc 0 "--version"
