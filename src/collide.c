@@ -382,6 +382,31 @@ static double earliest_crossing(const psys_system *s, const psys__collide_hooks 
     return best;
 }
 
+/* Has particle i, behind displace plane pl at the end of a step that began
+ * at y0, bounced below what the step can resolve? Displacing it back and
+ * reflecting its end-of-step normal velocity v1 adds back the speed the
+ * step's forces gave it behind the plane, up to dv = v0 - v1 (into the
+ * plane): a bounce of restitution e at the contact speed |v_c| loses
+ * (1 - e)|v_c|, and once that is less than dv the bounces no longer die out
+ * but settle into a cycle of bounces up to e·dv/(1 - e) fast that never
+ * falls below PSYS_CONTACT_SPEED when dv is above it (g = 9.81, dt = 1e-3,
+ * e = 0.5: 0.00654 forever).
+ * v_c is interpolated as rollback's contact instant would find it under
+ * constant acceleration: v_c² = a v1² + (1 - a) v0², a = d0/(d0 - d1) the
+ * fraction of the distance covered at the crossing. An elastic plane
+ * (e = 1) loses nothing and never settles. */
+static bool displace_unresolved(const psys_system *s, const psys__plane *pl, const double *y0, size_t i, double d1)
+{
+    const int d = s->dim;
+    const double v1 = dot_d(s->v + i * d, pl->n, d), v0 = dot_d(y0 + (s->n + i) * (size_t)d, pl->n, d);
+    if (!(v1 < 0) || !(pl->restitution < 1))
+        return false;
+    const double d0 = plane_distance(pl, y0 + i * d, d);
+    const double a = d0 > 0 ? d0 / (d0 - d1) : 0.0;
+    const double vc = sqrt(a * v1 * v1 + (1 - a) * v0 * v0);
+    return (1 - pl->restitution) * vc < v0 - v1;
+}
+
 psys_status psys_system_advance(psys_system *s, psys_solver *solver, double h_max, double *h_taken)
 {
     return psys__advance(s, solver, h_max, h_taken, NULL);
@@ -490,8 +515,9 @@ psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, dou
      * leftovers) is projected back. A particle that started the (rest of the)
      * step touching the plane and not approaching it fast, yet ends behind it,
      * bounced below what this step can resolve: it comes to rest (this ends
-     * the endless series of ever smaller bounces). Sticky contacts lose their
-     * tangential velocity. */
+     * the endless series of ever smaller bounces); so does one behind a
+     * displace plane whose bounce the step cannot resolve
+     * (displace_unresolved). Sticky contacts lose their tangential velocity. */
     for (size_t k = 0; k < s->nplanes; k++) {
         const psys__plane *pl = &s->planes[k];
         for (size_t i = 0; i < s->n; i++) {
@@ -499,8 +525,9 @@ psys_status psys__advance(psys_system *s, psys_solver *solver, double h_max, dou
                 continue;
             double dist = plane_distance(pl, s->x + i * d, d);
             if (dist < 0) {
-                bool settled = plane_distance(pl, y0 + i * d, d) <= PSYS_CONTACT_DISTANCE
-                               && dot_d(y0 + (s->n + i) * (size_t)d, pl->n, d) >= -PSYS_CONTACT_SPEED;
+                bool settled = (plane_distance(pl, y0 + i * d, d) <= PSYS_CONTACT_DISTANCE
+                                && dot_d(y0 + (s->n + i) * (size_t)d, pl->n, d) >= -PSYS_CONTACT_SPEED)
+                               || (pl->response == PSYS_RESPONSE_DISPLACE && displace_unresolved(s, pl, y0, i, dist));
                 respond(s, pl, i);
                 if (settled) {
                     double *v = s->v + i * d, vn = dot_d(v, pl->n, d);

@@ -325,6 +325,73 @@ static void test_restitution_half_dies_out(void)
     }
 }
 
+/* The same on a displace plane (2 kg ball from (1, 0.5) with v = (1, 0),
+ * r = 0.5, k_f = 0.5, dt = 10⁻³, 5 s), for the explicit solvers that do not
+ * gain energy in flight. Displacing the ball back and reflecting its
+ * end-of-step normal velocity gives back the speed gravity added behind the
+ * plane (up to g·dt = 0.0098), so bounces from rest never fell below
+ * PSYS_CONTACT_SPEED: the ball cycled between y = 0, vy = +0.00654 and
+ * y = 1.6e-6, vy = -0.00327 forever, vx = 1 untouched. It must settle near
+ * the Zeno limit t₁(1 + r)/(1 - r) = 0.958 s (its last bounces last a few
+ * steps, so within 20 steps of it), then stay on the plane and slide as
+ * v_t(t) = v_t(t_r) e^{-k_f g (t - t_r)} from the settling time t_r (before
+ * it vx is exactly 1: no friction in flight). The friction law is integrated
+ * to O(dt⁴) by rk4 and rk45 (as in friction_horizontal, 1e-8), to O(dt²) by
+ * verlet and midpoint: (k_f g dt)² ≈ 2.4e-5 a unit time, so 1e-4. */
+static void test_displace_comes_to_rest(void)
+{
+    static const char *const solvers[] = {"rk4", "verlet", "midpoint", "rk45"};
+    static const double tols[] = {1e-8, 1e-4, 1e-4, 1e-8};
+    const double r = 0.5, kf = 0.5, dt = 1e-3, lam = kf * G;
+    const double t_zeno = sqrt(2 * 0.5 / G) * (1 + r) / (1 - r);
+    for (size_t si = 0; si < sizeof solvers / sizeof solvers[0]; si++) {
+        psys_system *sys = make_system(2);
+        double x0[2] = {1, 0.5}, v0[2] = {1, 0};
+        add_particle(sys, x0, v0, 2);
+        add_gravity(sys);
+        const double p[2] = {0, 0}, n[2] = {0, 1};
+        add_plane(sys, p, n, r, kf, false, PSYS_RESPONSE_DISPLACE);
+        psys_solver *s = make_solver(solvers[si], sys);
+        const double *X = psys_system_positions(sys), *V = psys_system_velocities(sys);
+        enum { N = 5000 };
+        static double T[N], Y[N], VX[N], VY[N];
+        double min_y = 1;
+        for (int i = 0; i < N; i++) {
+            advance(sys, s, dt);
+            T[i] = psys_system_time(sys);
+            Y[i] = X[1];
+            VX[i] = V[0];
+            VY[i] = V[1];
+            min_y = fmin(min_y, X[1]);
+        }
+        int rest = N; /* first step from which it stays on the plane, at rest */
+        while (rest > 0 && fabs(Y[rest - 1]) <= 1e-12 && fabs(VY[rest - 1]) <= 1e-12)
+            rest--;
+        const double t_r = rest < N ? T[rest] : INFINITY;
+        double worst = 0, vx_before = 1;
+        for (int i = 0; i < N; i++) {
+            if (i <= rest) {
+                vx_before = fmax(vx_before, fabs(VX[i] - 1) + 1);
+                continue;
+            }
+            const double want = VX[rest] * exp(-lam * (T[i] - t_r));
+            if (T[i] - t_r <= 2) /* further on, vx < 1e-4 of its start */
+                worst = fmax(worst, fabs(VX[i] - want) / want);
+        }
+        fprintf(stderr, "  %s: at rest from t = %.4g (Zeno limit %.4g), lowest y %.3g; at t = 5: y = %.3g, "
+                "v = (%.3g, %.3g); friction: worst relative error %.3g\n",
+                solvers[si], t_r, t_zeno, min_y, Y[N - 1], VX[N - 1], VY[N - 1], worst);
+        CHECK(min_y >= -1e-12);
+        CHECK(t_r <= t_zeno + 20 * dt);
+        CHECK(vx_before == 1);
+        CHECK(rest < N && VX[rest] == 1);
+        CHECK(worst <= tols[si]);
+        CHECK(fabs(VX[N - 1]) <= 1e-8);
+        psys_solver_destroy(s);
+        psys_system_destroy(sys);
+    }
+}
+
 /* A particle that reaches a rollback plane exactly at the end of a step
  * (here y = 1 - 10·0.1 = 0 up to rounding) is at the instant of contact: it
  * must bounce there, not spend the next step behind the plane and be
@@ -863,6 +930,7 @@ static const check_case cases[] = {
     {"resting_contact", test_resting_contact},
     {"restitution_zero_rests", test_restitution_zero_rests},
     {"restitution_half_dies_out", test_restitution_half_dies_out},
+    {"displace_comes_to_rest", test_displace_comes_to_rest},
     {"touching_at_step_end", test_touching_at_step_end},
     {"friction_horizontal", test_friction_horizontal},
     {"friction_slope", test_friction_slope},
