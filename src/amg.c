@@ -30,6 +30,7 @@ typedef struct level {
     double *oval;
     double *dinv;            /* nb × bs²: inverse diagonal blocks */
     size_t *agg;             /* nb: node of the next level (not on the coarsest) */
+    unsigned char *strong;   /* nnz: the strong couplings the aggregates came from (NULL: not aggregated) */
     size_t *map;             /* nnz: block of the next level each block adds to */
     unsigned char *how;      /* nnz: 0 add B, 1 add Bᵀ, 2 add B + Bᵀ */
     /* A P (nb × next level's nb, block rows, gather only): the product of
@@ -44,6 +45,10 @@ struct psys__amg {
     int bs, nlev;
     level lev[MAX_LEVELS];
     double *chol;            /* coarsest level: dense Cholesky factor (lower, n × n) */
+    /* scratch for finding strong couplings (sized for level 0, the largest) */
+    double *norm, *rowmax;   /* nnz, nb */
+    unsigned char *strong;   /* nnz: psys__amg_refresh's of the current values */
+    size_t *agg;             /* nb: psys__amg_refresh's aggregates of the current values */
     size_t nc;               /* its order (0: the coarsest level uses Gauss–Seidel) */
     int chol_ok;             /* the last factorisation succeeded */
 };
@@ -219,35 +224,44 @@ static void backward_gs(const level *L, int bs)
 
 /* A coupling is strong when its block is at least STRONG × the largest
  * coupling at either of its ends (weak ones, e.g. bend springs, are left to
- * the smoother). */
-static bool strong(const level *L, int bs, const double *rowmax, size_t i, size_t e)
-{
-    double s = block_norm(L->val + e * (size_t)bs * bs, bs);
-    return s > 0 && s >= STRONG * fmax(rowmax[i], rowmax[L->col[e]]);
-}
-
-/* Group the nodes of L into aggregates: agg[i] gets the aggregate of node i;
- * returns their number, or NONE when out of memory. */
-static size_t aggregate(const level *L, int bs, size_t *agg)
+ * the smoother): flag[e] for each block of L (0 on the diagonal); norm and
+ * rowmax are scratch (nnz, nb). */
+static void strong_couplings(const level *L, int bs, double *norm, double *rowmax, unsigned char *flag)
 {
     size_t nb = L->nb, bb = (size_t)bs * bs;
-    double *rowmax = psys__calloc(nb ? nb : 1, sizeof(double));
-    size_t *start = psys__calloc(nb + 1, sizeof(size_t)), *fill = psys__calloc(nb ? nb : 1, sizeof(size_t));
-    unsigned char *joined = psys__calloc(nb ? nb : 1, 1);
-    size_t *adj = NULL, nagg = NONE;
-    if (!rowmax || !start || !fill || !joined)
-        goto done;
+    for (size_t i = 0; i < nb; i++)
+        rowmax[i] = 0;
     for (size_t i = 0; i < nb; i++)
         for (size_t e = L->row[i] + 1; e < L->row[i + 1]; e++) {
             double s = block_norm(L->val + e * bb, bs);
             size_t j = L->col[e];
+            norm[e] = s;
             rowmax[i] = fmax(rowmax[i], s);
             rowmax[j] = fmax(rowmax[j], s);
         }
+    for (size_t i = 0; i < nb; i++) {
+        if (L->row[i] < L->row[i + 1])
+            flag[L->row[i]] = 0;
+        for (size_t e = L->row[i] + 1; e < L->row[i + 1]; e++)
+            flag[e] = norm[e] > 0 && norm[e] >= STRONG * fmax(rowmax[i], rowmax[L->col[e]]);
+    }
+}
+
+/* Group the nodes of L into aggregates of the strong couplings flag
+ * (strong_couplings): agg[i] gets the aggregate of node i; returns their
+ * number, or NONE when out of memory. */
+static size_t aggregate(const level *L, const unsigned char *flag, size_t *agg)
+{
+    size_t nb = L->nb;
+    size_t *start = psys__calloc(nb + 1, sizeof(size_t)), *fill = psys__calloc(nb ? nb : 1, sizeof(size_t));
+    unsigned char *joined = psys__calloc(nb ? nb : 1, 1);
+    size_t *adj = NULL, nagg = NONE;
+    if (!start || !fill || !joined)
+        goto done;
     /* The strong graph, both directions, as adjacency lists. */
     for (size_t i = 0; i < nb; i++)
         for (size_t e = L->row[i] + 1; e < L->row[i + 1]; e++)
-            if (strong(L, bs, rowmax, i, e)) {
+            if (flag[e]) {
                 start[i + 1]++;
                 start[L->col[e] + 1]++;
             }
@@ -258,7 +272,7 @@ static size_t aggregate(const level *L, int bs, size_t *agg)
     memcpy(fill, start, nb * sizeof(size_t));
     for (size_t i = 0; i < nb; i++)
         for (size_t e = L->row[i] + 1; e < L->row[i + 1]; e++)
-            if (strong(L, bs, rowmax, i, e)) {
+            if (flag[e]) {
                 adj[fill[i]++] = L->col[e];
                 adj[fill[L->col[e]]++] = i;
             }
@@ -302,7 +316,6 @@ static size_t aggregate(const level *L, int bs, size_t *agg)
         nagg++;
     }
 done:
-    free(rowmax);
     free(start);
     free(fill);
     free(joined);
@@ -318,9 +331,56 @@ static int cmp_pair(const void *a, const void *b)
     return p[1] < q[1] ? -1 : p[1] > q[1];
 }
 
+/* Sorted by i with a counting sort (when the indices are at most k and the
+ * scratch is there), then each i's run by j (insertion sort for short runs):
+ * hierarchies are rebuilt often with pair forces, and qsort's calls to
+ * cmp_pair were most of the cost. The same order as qsort's. */
+static bool pairs_sort_counting(size_t *pairs, size_t k)
+{
+    size_t imax = 0;
+    for (size_t q = 0; q < k; q++)
+        imax = pairs[2 * q] > imax ? pairs[2 * q] : imax;
+    if (k < 64 || imax > k)
+        return false;
+    size_t *start = psys__calloc(imax + 2, sizeof(size_t)), *tmp = psys__calloc(k, 2 * sizeof(size_t));
+    if (!start || !tmp) {
+        free(start);
+        free(tmp);
+        return false;
+    }
+    for (size_t q = 0; q < k; q++)
+        start[pairs[2 * q] + 1]++;
+    for (size_t i = 0; i <= imax; i++)
+        start[i + 1] += start[i];
+    for (size_t q = 0; q < k; q++) {
+        size_t t = start[pairs[2 * q]]++;
+        tmp[2 * t] = pairs[2 * q];
+        tmp[2 * t + 1] = pairs[2 * q + 1];
+    }
+    memcpy(pairs, tmp, k * 2 * sizeof(size_t));
+    free(tmp);
+    for (size_t i = 0, lo = 0; i <= imax; i++) {
+        size_t hi = start[i]; /* now the end of i's run */
+        if (hi - lo > 32) {
+            qsort(pairs + 2 * lo, hi - lo, 2 * sizeof(size_t), cmp_pair);
+        } else {
+            for (size_t q = lo + 1; q < hi; q++) {
+                size_t j = pairs[2 * q + 1], r = q;
+                for (; r > lo && pairs[2 * (r - 1) + 1] > j; r--)
+                    pairs[2 * r + 1] = pairs[2 * (r - 1) + 1];
+                pairs[2 * r + 1] = j;
+            }
+        }
+        lo = hi;
+    }
+    free(start);
+    return true;
+}
+
 size_t psys__pairs_sort_unique(size_t *pairs, size_t k)
 {
-    qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
+    if (!pairs_sort_counting(pairs, k))
+        qsort(pairs, k, 2 * sizeof(size_t), cmp_pair);
     size_t u = 0;
     for (size_t q = 0; q < k; q++)
         if (u == 0 || cmp_pair(pairs + 2 * q, pairs + 2 * (u - 1)) != 0) {
@@ -579,6 +639,7 @@ void psys__amg_destroy(psys__amg *a)
         free(L->oval);
         free(L->dinv);
         free(L->agg);
+        free(L->strong);
         free(L->map);
         free(L->how);
         free(L->ap_row);
@@ -590,6 +651,10 @@ void psys__amg_destroy(psys__amg *a)
         free(L->t);
     }
     free(a->chol);
+    free(a->norm);
+    free(a->rowmax);
+    free(a->strong);
+    free(a->agg);
     free(a);
 }
 
@@ -611,13 +676,18 @@ psys__amg *psys__amg_create(size_t nb, int bs, const size_t *row, const size_t *
     L0->x = psys__calloc(n ? n : 1, sizeof(double));
     L0->b = psys__calloc(n ? n : 1, sizeof(double));
     L0->t = psys__calloc(n ? n : 1, sizeof(double));
-    if (!L0->dinv || !L0->x || !L0->b || !L0->t)
+    a->norm = psys__calloc(L0->nnz ? L0->nnz : 1, sizeof(double));
+    a->rowmax = psys__calloc(nb ? nb : 1, sizeof(double));
+    a->strong = psys__calloc(L0->nnz ? L0->nnz : 1, 1);
+    a->agg = psys__calloc(nb ? nb : 1, sizeof(size_t));
+    if (!L0->dinv || !L0->x || !L0->b || !L0->t || !a->norm || !a->rowmax || !a->strong || !a->agg)
         goto fail;
     while (a->nlev < MAX_LEVELS && a->lev[a->nlev - 1].nb > COARSE_NODES) {
         level *L = &a->lev[a->nlev - 1], *C = &a->lev[a->nlev];
-        if (!(L->agg = psys__calloc(L->nb, sizeof(size_t))))
+        if (!(L->agg = psys__calloc(L->nb, sizeof(size_t))) || !(L->strong = psys__calloc(L->nnz ? L->nnz : 1, 1)))
             goto fail;
-        size_t nc = aggregate(L, bs, L->agg);
+        strong_couplings(L, bs, a->norm, a->rowmax, L->strong); /* coarse levels are smaller than level 0 */
+        size_t nc = aggregate(L, L->strong, L->agg);
         if (nc == NONE)
             goto fail;
         if (nc == 0 || (double)nc > 0.8 * (double)L->nb) { /* coarsening stalled: L is the coarsest */
@@ -643,15 +713,49 @@ fail:
     return NULL;
 }
 
-void psys__amg_update(psys__amg *a)
+/* The rest of an update, the coarse matrices (Galerkin products) done or not. */
+static void update(psys__amg *a, bool coarse_done)
 {
     for (int l = 0; l + 1 < a->nlev; l++) {
-        galerkin(&a->lev[l], &a->lev[l + 1], a->bs);
+        if (!coarse_done)
+            galerkin(&a->lev[l], &a->lev[l + 1], a->bs);
         ap_update(&a->lev[l], a->bs);
     }
     for (int l = 0; l < a->nlev; l++)
         inverse_diagonals(&a->lev[l], a->bs);
     a->chol_ok = a->nc ? factor_coarsest(a) : 0;
+}
+
+void psys__amg_update(psys__amg *a) { update(a, false); }
+
+/* Level by level from the finest: the strong couplings of the current values
+ * (the coarse ones from the Galerkin product of the level above); when they
+ * differ from those the level was aggregated from, the aggregates they give,
+ * compared with the level's (a level create left unaggregated, the coarsest
+ * at or below COARSE_NODES nodes or MAX_LEVELS deep, has none to compare;
+ * one where coarsening stalled must stall again: no next level). */
+bool psys__amg_refresh(psys__amg *a)
+{
+    int bs = a->bs;
+    for (int l = 0; l < a->nlev; l++) {
+        level *L = &a->lev[l];
+        if (!L->strong)
+            break;
+        strong_couplings(L, bs, a->norm, a->rowmax, a->strong);
+        if (memcmp(a->strong, L->strong, L->nnz) != 0) {
+            size_t nc = aggregate(L, a->strong, a->agg);
+            bool stalled = nc == 0 || (double)nc > 0.8 * (double)L->nb;
+            if (nc == NONE || (l + 1 == a->nlev) != stalled)
+                return false;
+            if (!stalled && (nc != a->lev[l + 1].nb || memcmp(a->agg, L->agg, L->nb * sizeof(size_t)) != 0))
+                return false;
+            memcpy(L->strong, a->strong, L->nnz); /* the same aggregates: compare with these from now */
+        }
+        if (l + 1 < a->nlev)
+            galerkin(L, &a->lev[l + 1], bs);
+    }
+    update(a, true);
+    return true;
 }
 
 /* Damped block Jacobi, the smoother: x = ω D⁻¹ b (from zero, before the

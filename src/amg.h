@@ -22,6 +22,14 @@ void psys__amg_destroy(psys__amg *a);
 /* Recompute the coarse matrices and smoother data from the fine values
  * (same pattern as at creation). No allocation. */
 void psys__amg_update(psys__amg *a);
+/* psys__amg_update, provided that the aggregates of the current fine values
+ * (and of the coarse values they give, level by level) are the hierarchy's:
+ * then the result is what psys__amg_create would build now, and true is
+ * returned. Otherwise (or out of memory) false, and the caller creates the
+ * hierarchy anew. The preconditioner is then a function of the current
+ * matrix alone, not of when it was built: a run resumed from a checkpoint
+ * finds the same one (DESIGN §3a). Allocates only scratch. */
+bool psys__amg_refresh(psys__amg *a);
 /* z = one symmetric multigrid cycle (V at the finest level, W below) applied
  * to r (an SPD approximation of A⁻¹ r):
  * damped block Jacobi before and after the coarse correction, a dense

@@ -306,9 +306,15 @@ static psys_status implicit_step(psys_solver *s, double h, double *h_taken)
         dv[k] = 0;
     }
     bake(m, mass);
-    if (m->amg)
-        psys__amg_update(m->amg);
-    else if (!(m->amg = psys__amg_create(m->nb, b, m->row, m->col, m->val)))
+    /* The preconditioner's aggregates are those of this step's matrix (kept
+     * while they stay the same, built anew when they change): a hierarchy
+     * kept from an earlier step would make the result depend on when it was
+     * built, and a run resumed from a checkpoint differ from the one-go run. */
+    if (m->amg && !psys__amg_refresh(m->amg)) {
+        psys__amg_destroy(m->amg);
+        m->amg = NULL;
+    }
+    if (!m->amg && !(m->amg = psys__amg_create(m->nb, b, m->row, m->col, m->val)))
         return psys__fail(&s->err, PSYS_ERR_NOMEM, "out of memory building the implicit-euler preconditioner");
     /* Preconditioned conjugate gradient from Δv = 0 on the filtered system. */
     double bnorm = sqrt(dot(rhs, rhs, np));
