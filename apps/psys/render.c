@@ -538,8 +538,7 @@ static void trace_huge_marker(cairo_t *cr, double x, double y, double rad)
     }
     /* inside: (p − m)·u ≤ s, with s = rad − d measured from the centre m */
     double s = rad - d, L = 4.0 * (w + h);
-    if (s > L)
-        s = L;
+    s = fmax(-L, fmin(s, L)); /* beyond ±L the picture is all in or all out */
     double ex = mx + s * ux, ey = my + s * uy;
     cairo_move_to(cr, ex - L * uy, ey + L * ux);
     cairo_line_to(cr, ex + L * uy, ey - L * ux);
