@@ -278,6 +278,8 @@ cannot_start "--fps huge" '--fps: must be a number > 0 and at most 1000 (got 500
 cannot_start "--fps without --render" '--fps: only with --render (or output.render)' run swing.json --fps 10 --out a.csv
 cannot_start "--camera without --render" '--camera: only with --render (or output.render)' run swing.json --camera ortho
 cannot_start "--size without --render" '--size: only with --render or --plot (or output.render)' run swing.json --size 80x60
+cannot_start "camera zoom above its bound" '--camera: zoom= must be a number > 0 and at most 1e6 (got 1e12)' \
+    run swing.json --render keep.png --camera zoom=1e12
 cannot_start "unknown camera item" \
     '--camera: unknown item "sideways" (known: ortho, perspective, az=DEG, el=DEG, fov=DEG, up=x|y|z, center=X:Y[:Z], extent=L, zoom=F, fit=run|start)' \
     run cloth.json --render keep.png --camera sideways
