@@ -4,5 +4,6 @@
 # allocation-failure sweep is tests/test_alloc.cmake, fuzzing fuzz/.
 psys_c_test(test_determinism repeat_runs thread_counts thread_counts_parallel_paths round_trip_runs stiffest_omega)
 psys_cli_test(determinism)
+psys_cli_test(example_outputs)
 psys_cli_test(guardrails)
 psys_cli_test(hostile)
