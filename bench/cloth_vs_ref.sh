@@ -1,6 +1,7 @@
 #!/bin/sh
 # psys bench cloth-N (rk4, 1 thread, and 2 threads for the largest N) and the
-# plain-C reference ../shared/peers/ref_cloth.c (gcc -O3 -march=native),
+# plain-C reference, the peer ref_cloth.c in $PEERS (bench/README.md, "Peer
+# programs"; gcc -O3 -march=native),
 # interleaved in one run; prints each side's median ns per particle-step and
 # their ratio per size. Usage: bench/cloth_vs_ref.sh [BUILD_DIR] [ROUNDS] [SIZES]
 # (defaults: build, 3, "100 256 1024"); BENCH_SECONDS (default 0.4) is each

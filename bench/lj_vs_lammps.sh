@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# LJ melt, psys against LAMMPS in the same run (interleaved, DESIGN §4).
+# LJ melt, psys against LAMMPS in the same run (interleaved; benchmarks are programs,
+# not tests: bench/README.md).
 #
 #   bench/lj_vs_lammps.sh [BUILD_DIR] [REPS] [THREADS] [SCALE]
 #
 # SCALE 1 (default): 32,000 atoms; 2: 256,000 (LAMMPS's -var x/y/z 2).
 # psys: BUILD_DIR/pair_bench lj-melt (32,000 × SCALE³ atoms, 100 velocity-Verlet steps,
 # dt 0.005, cutoff 2.5, skin 0.3; see bench/pair_bench.c). LAMMPS:
-# ../shared/peers/in.lj (the same system; its neighbour lists are rebuilt
+# the peer in.lj in $PEERS (bench/README.md, "Peer programs"; the same system; its neighbour lists are rebuilt
 # every 20 steps without a check, psys's whenever needed), and the same
 # input with LAMMPS checking displacements every step ("check yes", what psys
 # does; case lammps-lj-melt-check). Prints one JSON line per run and a summary

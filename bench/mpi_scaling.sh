@@ -11,7 +11,7 @@
 # atoms) sizes the strong-scaling melt; the weak one has about 8,000 atoms
 # per rank. With LAMMPS=1 and Debian's lmp (built with Open MPI) on the
 # PATH, LAMMPS runs the same LJ cases right after psys's (lj/cut, the melt of
-# ../shared/peers/in.lj at the same sizes, neighbour lists checked every
+# the peer in.lj (bench/README.md, "Peer programs"; $PEERS) at the same sizes, neighbour lists checked every
 # step as psys does; its "Loop time" over 100 steps, start-up excluded), so
 # the two codes' scaling is measured on the same machine in the same run.
 set -euo pipefail

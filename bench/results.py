@@ -27,7 +27,7 @@ replays them and checks that the README holds what they print (--check).
 the small pair-force sizes, one round; about half a minute): its figures mean
 nothing, but it proves that every program and script still runs and that
 this file still reads what they print today (the test bench.results_quick).
-The peers' sources are looked for in $PEERS (default ../shared/peers).
+The peers' sources are looked for in $PEERS (bench/README.md, "Peer programs").
 """
 import argparse
 import datetime
@@ -250,7 +250,7 @@ def markdown(r, missing, when, com, hw, replay=None, quick=False):
     if "cloth" in r:
         c = r["cloth"]
         o += ["", f"**Mass-spring cloth against a plain C implementation** (`bench/cloth_vs_ref.sh`: medians of "
-                  f"{r['rounds']} rounds; the reference is `../shared/peers/ref_cloth.c`, gcc -O3 -march=native, the "
+                  f"{r['rounds']} rounds; the reference is the peer `ref_cloth.c`, gcc -O3 -march=native, the "
                   "same sheet, springs and rk4):", "",
               "| case | psys | reference | psys / reference | floor | psys / floor | issue 8 target |",
               "| --- | --- | --- | --- | --- | --- | --- |"]

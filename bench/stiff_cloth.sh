@@ -4,11 +4,11 @@
 #
 #   bash bench/stiff_cloth.sh [BUILD_DIR]
 #
-# The cloth of ../shared/peers/bullet_cloth.cpp: N×N nodes (N=100 unless
+# The cloth of the peer bullet_cloth.cpp (bench/README.md, "Peer programs"): N×N nodes (N=100 unless
 # set; smaller only to check that the script runs), 2 m × 2 m,
 # 1 kg, hanging from two corners of one edge, 1 s simulated. Needs
-# libbullet-dev (apt-get install libbullet-dev) and PEERS (default
-# ../shared/peers) holding bullet_cloth.cpp; psys's side is build/stiff_cloth.
+# libbullet-dev (apt-get install libbullet-dev) and PEERS (the folder of
+# the peer programs) holding bullet_cloth.cpp; psys's side is build/stiff_cloth.
 #
 # Steps: (1) Bullet (float64) at piterations 8..32: the fewest reaching mean
 # link strain <= 2%; (2) psys implicit-euler at dt = 1/60 and a sweep of

@@ -13,7 +13,7 @@ set_tests_properties(bench.pair_bench_lj_threads PROPERTIES PASS_REGULAR_EXPRESS
 # pair_bench, callgrind) at tiny sizes, so that a change to what a program
 # or script prints fails here, not in the next benchmark run. Its figures
 # mean nothing. A step whose tool (lmp, valgrind, libbullet-dev: all from
-# scripts/install-deps.sh) or peer source ($PEERS, default ../shared/peers)
+# scripts/install-deps.sh) or peer source ($PEERS: bench/README.md, "Peer programs")
 # is missing is left out and named in the output; one that fails, fails the
 # test. Not under the sanitizers (valgrind cannot run ASan binaries).
 find_program(PSYS_PYTHON3 python3)

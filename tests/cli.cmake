@@ -1,4 +1,5 @@
-# Command-line contract tests (DESIGN §2, §3, §3a): bash scripts in tests/cli/,
+# Command-line contract tests (docs/scene-format.md, docs/cli.md,
+# docs/semantics.md): bash scripts in tests/cli/,
 # each run as `bash tests/cli/NAME.sh PSYS SOURCE-ROOT` (see psys_cli_test).
 psys_cli_test(bad_input)
 psys_cli_test(csv_format)

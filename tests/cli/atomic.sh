@@ -1,5 +1,6 @@
 # Output files are written under a temporary name and renamed when complete
-# (DESIGN §3, §3a "Failed runs", "Checkpoint and resume"):
+# (docs/cli.md "How files are written"; docs/semantics.md "Failed and interrupted
+# runs", "Checkpoints"):
 #   - a run that cannot start (exit 2) creates, truncates and replaces nothing,
 #     including when an output directory does not exist;
 #   - an existing output file keeps its old content until the run is complete;

@@ -1,4 +1,5 @@
-# Every class of bad input (DESIGN §2, §3, §3a "Failed runs"):
+# Every class of bad input (docs/scene-format.md, docs/cli.md, docs/semantics.md
+# "Failed and interrupted runs"):
 #   exit status 2, one message on stderr of the form
 #   "psys: FILE: JSON.PATH: what is wrong (got VALUE)", and nothing written:
 #   pre-existing --out/--energy/--checkpoint/--save files stay byte-identical
@@ -245,7 +246,7 @@ for integ in euler midpoint rk4 symplectic-euler verlet rk45 implicit-euler; do
         check "integrator $integ is accepted, so the unknown-integrator message lists it (list: $integrators_known)" \
             grep -qw -e "$integ" <<<"${integrators_known//, /$'\n'}"
     elif [ "$integ" != implicit-euler ]; then
-        fail "integrator $integ (DESIGN §1) is rejected: $(cat err.txt)"
+        fail "integrator $integ (docs/scene-format.md "Top-level keys") is rejected: $(cat err.txt)"
     fi
 done
 bad_scene_re unknown_force_type '{"psys": 1, "forces": [{"type": "magnet"}]}' \
@@ -274,7 +275,7 @@ bad_scene particle_not_object '{"psys": 1, "particles": [[0, 0, 0]]}' \
 bad_scene fixed_not_bool '{"psys": 1, "particles": [{"x": [0, 0, 0], "fixed": 1}]}' \
     'particles[0].fixed: must be true or false (got 1)'
 
-# ---------------------------------------------------------------- planes and controls (DESIGN §2, §3a)
+# ---------------------------------------------------------------- planes and controls (docs/scene-format.md, docs/semantics.md)
 
 bad_scene plane_zero_normal '{"psys": 1, "dim": 2, "planes": [{"point": [0, 0], "normal": [0, 0]}]}' \
     'planes[0].normal: must not be zero (got [0,0])'

@@ -1,4 +1,4 @@
-# Checkpoint and resume (DESIGN §3a): running A+B steps in one go, and A
+# Checkpoint and resume (docs/semantics.md "Resuming"): running A+B steps in one go, and A
 # steps with --checkpoint followed by `--resume CK --steps B`, gives
 # byte-identical trajectory (and energy) rows, for every integrator. The
 # resumed run's first frame is the checkpoint state (step A); step and t

@@ -1,5 +1,5 @@
-# Output files and run length (DESIGN §3 "Trajectory CSV", "Energy CSV",
-# §3a "Steps and time", "Frames"): headers, one row per particle per frame,
+# Output files and run length (docs/cli.md "Trajectory CSV", "Energy CSV";
+# docs/semantics.md "Steps and frames", "Output frames"): headers, one row per particle per frame,
 # frame 0 and the last step always present, --every, --steps, --duration
 # ending exactly at T, %.17g numbers, "-" for standard input, flags over
 # scene values, the scene's output block, and energies against hand values.

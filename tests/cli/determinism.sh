@@ -1,4 +1,4 @@
-# Determinism (docs/trust.md, DESIGN §1 and §3a):
+# Determinism (docs/trust.md; docs/semantics.md "Library rules", "Resuming"):
 #   1. the same scene gives byte-identical output from run to run and for
 #      --threads 1, 2 and 4;
 #   2. a run split at ANY step into a --checkpoint run and a --resume run

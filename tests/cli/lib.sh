@@ -1,4 +1,5 @@
-# Shared helpers for the psys command-line contract tests (DESIGN §2, §3, §3a).
+# Shared helpers for the psys command-line contract tests (docs/scene-format.md,
+# docs/cli.md, docs/semantics.md).
 #
 # Each test script is run as   bash tests/cli/NAME.sh /path/to/psys /path/to/source-root
 # and sources this file first. It then works in a fresh temporary directory

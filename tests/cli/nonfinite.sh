@@ -1,5 +1,5 @@
-# A run whose state becomes non-finite (DESIGN §3 exit status 1, §3a "Failed
-# runs"): exit 1; the message names the step, the time and a particle; the
+# A run whose state becomes non-finite (docs/cli.md "Exit status" 1,
+# docs/semantics.md "Failed and interrupted runs"): exit 1; the message names the step, the time and a particle; the
 # output files are complete (header + whole frames, every frame up to the last
 # good state), renamed into place, and their last frame is finite and is the
 # step before the failing one.

@@ -1,4 +1,5 @@
-# Scene round trip (DESIGN §2 last paragraph, §3a "psys check"):
+# Scene round trip (docs/scene-format.md "Saving a scene back", docs/cli.md
+# "psys check"):
 #   psys check S --save A;  psys check A --save B   ->  A and B byte-identical,
 #   and running S and running A give byte-identical results (to the last bit).
 # Also: check prints "key: value" lines with at least dim, particles,

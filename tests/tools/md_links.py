@@ -4,9 +4,9 @@
     md_links.py SRCDIR
 
 Every relative link [text](path#anchor) in a tracked-style .md file under
-SRCDIR (build folders, hidden folders and ../shared left out) must name a
-file that exists and, for a .md file, a heading that the link's anchor
-names the way GitHub derives anchors (lower case, punctuation dropped,
+SRCDIR (build folders and hidden folders left out; links leaving SRCDIR
+are not checked) must name a file that exists and, for a .md file, a
+heading that the link's anchor names the way GitHub derives anchors (lower case, punctuation dropped,
 spaces to hyphens, -1, -2 for repeats). Exit 1 with one line per broken
 link, else 0.
 """
@@ -56,7 +56,7 @@ def main():
             path, _, frag = target.partition("#")
             dest = os.path.normpath(os.path.join(os.path.dirname(md), path)) if path else md
             where = os.path.relpath(md, root)
-            if not dest.startswith(root + os.sep):  # ../shared: not this tree's
+            if not dest.startswith(root + os.sep):  # outside the tree: not this tree's
                 continue
             if not os.path.exists(dest):
                 print(f"{where}: no file {target}")
