@@ -152,9 +152,8 @@ static int run_lj(int cells, int steps, int threads, int reps, const char *label
         psys_system *sys = lj_melt(cells, 0.3, threads, &fi);
         if (!sys)
             return 1;
-        psys_ode ode = psys_system_ode(sys);
         psys_error err;
-        psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+        psys_solver *sol = psys_system_solver_create(sys, "verlet", &err);
         if (!sol) {
             fprintf(stderr, "pair_bench: cannot create the verlet solver\n");
             psys_system_destroy(sys);
@@ -252,7 +251,7 @@ static int lj_eval(int cells, int evals, int threads, int reps)
             return 1;
         psys_ode ode = psys_system_ode(sys);
         psys_error err;
-        psys_solver *sol = psys_solver_create("verlet", &ode, &err);
+        psys_solver *sol = psys_system_solver_create(sys, "verlet", &err);
         double *y = malloc(3 * ode.size * sizeof(double));
         int bad = !sol || !y;
         for (int s = 0; s < 100 && !bad; s++)

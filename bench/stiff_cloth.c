@@ -69,8 +69,7 @@ int main(int argc, char **argv)
     psys_system *sys = psys_scene_system(sc);
     psys_settings *set = psys_scene_settings(sc);
     psys_system_set_threads(sys, 1); /* one core, as Bullet */
-    psys_ode ode = psys_system_ode(sys);
-    psys_solver *solver = psys_solver_create(solver_name, &ode, &err);
+    psys_solver *solver = psys_system_solver_create(sys, solver_name, &err);
     if (!solver) {
         fprintf(stderr, "stiff_cloth: %s\n", err.message);
         psys_scene_destroy(sc);

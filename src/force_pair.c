@@ -20,6 +20,7 @@
  * evaluation finds more particles (or a rebuild needs more room); if it
  * cannot grow, that evaluation runs the direct method, which needs none and
  * gives the same forces. */
+#include "bench.h"
 #include "pair.h"
 
 #include <cjson/cJSON.h>
@@ -334,7 +335,7 @@ static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const
                       int nt)
 {
     if (psys__pair_group_forces(p, m, x, w, n, mark, changed, nchanged, xc, out, nt)) {
-        p->stats.grouped++;
+        p->grouped++;
         return true;
     }
     pair_soa_positions(p, x, n, nt);
@@ -974,6 +975,15 @@ psys_status psys_system_pair_stats(const psys_system *sys, size_t i, psys_pair_s
         return PSYS_ERR_INVALID;
     if (stats)
         *stats = p->stats;
+    return PSYS_OK;
+}
+
+psys_status psys__system_pair_grouped(const psys_system *sys, size_t i, size_t *grouped)
+{
+    const pair_force *p = pair_at(sys, i);
+    if (!p)
+        return PSYS_ERR_INVALID;
+    *grouped = p->grouped;
     return PSYS_OK;
 }
 

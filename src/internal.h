@@ -3,6 +3,7 @@
 #define PSYS_INTERNAL_H
 
 #include "psys/psys.h"
+#include "solver_fast.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -292,7 +293,7 @@ psys_status psys__springs_prepare(void *set);
  *  into ydot, or with pass (not NULL) applied to it instead of storing it:
  *  *used tells whether it did; the same bits as the generic path. */
 psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,
-                                   const psys_stage_pass *pass, bool *used);
+                                   const psys__stage_pass *pass, bool *used);
 /** Whether psys__fused_derivative takes sys as it is now. */
 bool psys__fused_eligible(const psys_system *sys);
 /** Whether psys__fused_chain takes sys for a step of `stages` stages: asked
@@ -307,14 +308,14 @@ int psys__fused_chain_pick(const psys_system *sys);
  *  PSYS_FUSED=1, stepped by an explicit Runge–Kutta solver): 0 where that
  *  path was never taken. */
 size_t psys__fused_held(const psys_system *sys);
-/** All stages of a chain Runge–Kutta step (psys_ode.derivative_chain) in
+/** All stages of a chain Runge–Kutta step (psys__ode_fast.derivative_chain) in
  *  one sweep: stage i on y_i (y0, then pass[i-1].next) with pass[i] applied;
  *  the bits of psys__fused_derivative stage after stage. y0 NULL: the
  *  system's own x and v, also standing for the passes' base (NULL there);
  *  only with the state in the particles' order. *used false (and nothing
  *  done) when the system is not eligible. */
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
-                              const psys_stage_pass *pass, bool *used);
+                              const psys__stage_pass *pass, bool *used);
 /** The springs' internal order (slot -> particle, covering *perm_n
  *  particles) when the fused derivative takes sys and the springs have one
  *  (builds the plan), with the plan's version in *plan; NULL otherwise. */
@@ -326,13 +327,15 @@ void psys__order_copy(const uint32_t *perm, size_t perm_n, size_t n, int width, 
                       bool to_particles, int nt);
 /** Before a step of psys__advance: hold the solver's state in the springs'
  *  internal order for this step where that gives the same bits (an
- *  elementwise solver on the system's own ODE, the fused derivative) and
- *  the springs have such an order; true if so,
- *  until psys__state_order_end. PSYS_STATE_ORDER=0 in the environment
+ *  elementwise solver created for s by psys_system_solver_create, the
+ *  fused derivative) and the springs have such an order; true if so, until
+ *  psys__state_order_end. PSYS_STATE_ORDER=0 in the environment
  *  keeps the particles' order. */
 bool psys__state_order_begin(psys_system *s, const psys_solver *solver);
 /** Back to the particles' own order (after the step). */
 void psys__state_order_end(psys_system *s);
+/** The fast paths of psys_system_ode(s) (psys_system_solver_create). */
+psys__ode_fast psys__system_ode_fast(psys_system *s);
 
 /** The order in which each particle's force receives its spring forces
  *  (builds the plan): row i of rowptr (np + 1) and ent (2·count) lists

@@ -144,6 +144,7 @@ typedef struct pair_force {
     pair_grid grid;
     pair_bh bh;
     psys_pair_stats stats;
+    size_t grouped;        /* psys__system_pair_grouped */
 } pair_force;
 
 /* Minimum-image parameters of one evaluation. */

@@ -47,8 +47,7 @@ psys_run *psys_run_create(psys_scene *scene, psys_error *err)
     }
     r->scene = scene;
     r->sys = scene->sys;
-    psys_ode ode = psys_system_ode(r->sys);
-    if (!(r->solver = psys_solver_create(set->integrator, &ode, err))) {
+    if (!(r->solver = psys_system_solver_create(r->sys, set->integrator, err))) {
         free(r);
         return NULL;
     }

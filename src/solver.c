@@ -27,6 +27,12 @@ bool psys_solver_exists(const char *name) { return name && lookup(name) != NULL;
 
 psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_error *err)
 {
+    return psys__solver_create_fast(name, ode, NULL, NULL, err);
+}
+
+psys_solver *psys__solver_create_fast(const char *name, const psys_ode *ode, const psys__ode_fast *fast,
+                                      psys_system *owner, psys_error *err)
+{
     const psys__solver_class *cls = name ? lookup(name) : NULL;
     if (!cls) {
         psys__fail(err, PSYS_ERR_INVALID, "unknown solver \"%s\"", name ? name : "(null)");
@@ -48,6 +54,9 @@ psys_solver *psys_solver_create(const char *name, const psys_ode *ode, psys_erro
     }
     s->cls = cls;
     s->ode = *ode;
+    if (fast)
+        s->fast = *fast;
+    s->owner = owner;
     s->n = ode->size;
     s->cap = ode->size;
     s->tol = 1e-6;
@@ -81,6 +90,9 @@ void psys_solver_destroy(psys_solver *s)
 }
 
 const char *psys_solver_name(const psys_solver *s) { return s->cls->name; }
+psys_system *psys__solver_owner(const psys_solver *s) { return s->owner; }
+size_t psys__solver_size(const psys_solver *s) { return s->n; }
+bool psys__solver_elementwise(const psys_solver *s) { return s->cls->elementwise; }
 bool psys_solver_is_adaptive(const psys_solver *s) { return s->cls->adaptive; }
 int psys_solver_order(const psys_solver *s) { return s->cls->order; }
 size_t psys_solver_bad_component(const psys_solver *s) { return s->bad; }
@@ -152,6 +164,8 @@ psys_status psys__solver_rebind(psys_solver *s, const psys_ode *ode)
         s->cap = cap;
     }
     s->ode = *ode;
+    memset(&s->fast, 0, sizeof s->fast);
+    s->owner = NULL;
     s->n = ode->size;
     return PSYS_OK;
 }
@@ -175,7 +189,7 @@ psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot)
 
 psys_status psys__solver_eval_accel(psys_solver *s, double t, double *y, double *ydot)
 {
-    return eval_by(s, s->ode.acceleration ? s->ode.acceleration : s->ode.derivative, t, y, ydot);
+    return eval_by(s, s->fast.acceleration ? s->fast.acceleration : s->ode.derivative, t, y, ydot);
 }
 
 int psys__solver_threads(const psys_solver *s)

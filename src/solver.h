@@ -3,6 +3,7 @@
 #define PSYS_SOLVER_H
 
 #include "internal.h"
+#include "solver_fast.h"
 
 /** Butcher tableau of an explicit Runge–Kutta method (optionally embedded). */
 typedef struct psys__tableau {
@@ -20,6 +21,8 @@ typedef struct psys__solver_class psys__solver_class;
 struct psys_solver {
     const psys__solver_class *cls;
     psys_ode ode;
+    psys__ode_fast fast;  /* the ODE's fast paths (psys__solver_create_fast), all NULL for a user's ODE */
+    psys_system *owner;   /* the system whose own ODE ode is (psys_system_solver_create), or NULL */
     size_t n;
     size_t cap;                  /* length the scratch vectors hold (>= n; psys__solver_rebind) */
     double *buf[PSYS__MAX_BUFS]; /* scratch vectors of length n, allocated once */
@@ -29,11 +32,11 @@ struct psys_solver {
     size_t rejected;
     size_t bad;
     /* The stages found every component of the result finite and project
-     * changes none (psys_stage_pass.finite): commit need not look again.
+     * changes none (psys__stage_pass.finite): commit need not look again.
      * Set just before a successful commit; commit clears it. */
     bool y1_finite;
     /* The ODE wrote the result into its state itself and the step's start
-     * into y1 (psys_stage_pass.in_place; rk solvers: rk_commit_in_state). */
+     * into y1 (psys__stage_pass.in_place; rk solvers: rk_commit_in_state). */
     bool y1_in_state;
     psys_error err;
     /* implicit solvers */
@@ -72,14 +75,15 @@ size_t psys__solver_first_nonfinite(const psys_solver *s, const double *y);
 psys_status psys__solver_nonfinite(psys_solver *s, size_t bad);
 /** Point the solver at another ODE of the same kind but maybe another size
  *  (an MPI domain's local particles after a migration), keeping its
- *  settings and step-size state; the scratch vectors grow only when the new
- *  size exceeds their length. PSYS_ERR_UNSUPPORTED for solvers with state of
+ *  settings and step-size state but no fast paths or owner (they belonged
+ *  with the old ODE); the scratch vectors grow only when the new size
+ *  exceeds their length. PSYS_ERR_UNSUPPORTED for solvers with state of
  *  their own (implicit), PSYS_ERR_NOMEM if they cannot grow (unchanged then). */
 psys_status psys__solver_rebind(psys_solver *s, const psys_ode *ode);
 /** Evaluate the derivative at (t, y) after projecting prescribed components. */
 psys_status psys__solver_eval(psys_solver *s, double t, double *y, double *ydot);
 /** psys__solver_eval for solvers of second-order systems: through
- *  ode.acceleration where there is one, so only ydot[npos..size) is sure
+ *  fast.acceleration where there is one, so only ydot[npos..size) is sure
  *  to be written. */
 psys_status psys__solver_eval_accel(psys_solver *s, double t, double *y, double *ydot);
 

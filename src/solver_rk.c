@@ -109,27 +109,29 @@ static int chain_role(const psys__tableau *tab, int i, int nw, int seen, int las
     return w == 0 ? 0 : nw == 1 ? 1 : seen == 0 ? 2 : i == last ? 4 : 3;
 }
 
-/* Stage i's work on its derivative (psys_stage_pass): weight into acc (y1)
+/* Stage i's work on its derivative (psys__stage_pass): weight into acc (y1)
  * by its role, and the next stage's state into next (NULL after the last). */
-static psys_stage_pass chain_pass(const psys__tableau *tab, int i, double h, const double *y0, double *y1,
+static psys__stage_pass chain_pass(const psys__tableau *tab, int i, double h, const double *y0, double *y1,
                                   double *next, int nw, int seen, int last, int *finite)
 {
     const bool more = i + 1 < tab->stages;
     const int role = chain_role(tab, i, nw, seen, last);
-    psys_stage_pass p = {.h = h, .base = y0, .w = tab->b[i], .acc = role == 0 ? NULL : y1};
-    p.acc_op = role == 1 ? 2 : more ? (role == 2 ? 0 : 1) : (role == 2 ? 3 : 4);
+    psys__stage_pass p = {.h = h, .base = y0, .w = tab->b[i], .acc = role == 0 ? NULL : y1};
+    p.acc_op = role == 1 ? PSYS__ACC_BASE_STEP
+               : more    ? (role == 2 ? PSYS__ACC_SET : PSYS__ACC_ADD)
+                         : (role == 2 ? PSYS__ACC_BASE_FIRST : PSYS__ACC_BASE_SUM);
     p.next = more ? next : NULL;
     p.a = more ? tab->a[i + 1][i] : 0;
     p.finite = i == last ? finite : NULL; /* the pass that completes acc */
     return p;
 }
 
-/* rk_chain_stages through ode.derivative_chain (all stages in one call), or
- * else ode.derivative_stage: each stage's derivative is applied to acc and
+/* rk_chain_stages through fast.derivative_chain (all stages in one call), or
+ * else fast.derivative_stage: each stage's derivative is applied to acc and
  * the next stage's state as it is computed and never stored. Stage by
  * stage, the next state alternates between two vectors, since the stage's
  * own state is read while it is written. The operations per element are
- * those of rk_chain_stages (psys_stage_pass.acc_op), so the same bits.
+ * those of rk_chain_stages (psys__stage_pass.acc_op), so the same bits.
  * y0 is the step's start only once *loaded: the chain may read the ODE's
  * state where it is (derivative_chain_current) and spare the copy; else
  * y0 is loaded here. PSYS_ERR_UNSUPPORTED, with nothing done (and y0
@@ -138,11 +140,11 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
                                   bool *loaded, double *y1, int nw, int last)
 {
     const int ns = tab->stages;
-    if (s->ode.derivative_chain && ns > 1 && s->ode.derivative_chain(s->ode.ctx, t, NULL, ns, NULL, NULL) == PSYS_OK) {
+    if (s->fast.derivative_chain && ns > 1 && s->fast.derivative_chain(s->ode.ctx, t, NULL, ns, NULL, NULL) == PSYS_OK) {
         /* All stages in one call: each stage's state in a vector of its own
          * (the ODE may still be reading stage i's state while it writes
          * stage i + 1's), slots YTMP, K0 + 1, ..., K0 + ns - 2. */
-        psys_stage_pass pass[7];
+        psys__stage_pass pass[7];
         int finite = -1, in_place = -1;
         for (int i = 0, seen = 0; i < ns; i++) {
             double *next = i + 1 < ns ? s->buf[i == 0 ? YTMP : K0 + i] : NULL;
@@ -151,10 +153,10 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
                 seen++;
         }
         psys_status st = PSYS_ERR_UNSUPPORTED;
-        if (s->ode.derivative_chain_current && !*loaded) {
+        if (s->fast.derivative_chain_current && !*loaded) {
             /* the result straight into the state where no later stage reads the start */
             pass[last].in_place = last == ns - 1 ? &in_place : NULL;
-            st = s->ode.derivative_chain_current(s->ode.ctx, t, ns, tab->c, pass);
+            st = s->fast.derivative_chain_current(s->ode.ctx, t, ns, tab->c, pass);
             pass[last].in_place = NULL;
         }
         if (st == PSYS_ERR_UNSUPPORTED) {
@@ -164,7 +166,7 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
             *loaded = true;
             for (int i = 0; i < ns; i++)
                 pass[i].base = y0;
-            st = s->ode.derivative_chain(s->ode.ctx, t, y0, ns, tab->c, pass);
+            st = s->fast.derivative_chain(s->ode.ctx, t, y0, ns, tab->c, pass);
         }
         if (st == PSYS_OK) {
             s->y1_finite = finite == 1;
@@ -175,7 +177,7 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
             return psys__fail(&s->err, PSYS_ERR_INVALID, "the derivative declined a step at t = %.17g", t);
         return psys__fail(&s->err, st, "the derivative evaluation failed in the step from t = %.17g", t);
     }
-    if (!s->ode.derivative_stage || s->ode.derivative_stage(s->ode.ctx, t, NULL, NULL) != PSYS_OK)
+    if (!s->fast.derivative_stage || s->fast.derivative_stage(s->ode.ctx, t, NULL, NULL) != PSYS_OK)
         return PSYS_ERR_UNSUPPORTED; /* asked before any projection: callbacks run once per stage */
     if (!*loaded)
         s->ode.get_state(s->ode.ctx, y0);
@@ -184,14 +186,14 @@ static psys_status rk_chain_fused(psys_solver *s, const psys__tableau *tab, doub
     double *yi = y0;
     int seen = 0, finite = -1;
     for (int i = 0; i < ns; i++) {
-        const psys_stage_pass p =
+        const psys__stage_pass p =
             chain_pass(tab, i, h, y0, y1, i + 1 < ns ? next[i & 1] : NULL, nw, seen, last, &finite);
         if (tab->b[i] != 0)
             seen++;
         const double ti = t + tab->c[i] * h;
         if (s->ode.project)
             s->ode.project(s->ode.ctx, ti, yi);
-        psys_status st = s->ode.derivative_stage(s->ode.ctx, ti, yi, &p);
+        psys_status st = s->fast.derivative_stage(s->ode.ctx, ti, yi, &p);
         if (st == PSYS_ERR_UNSUPPORTED) /* it accepted the step: declining a stage now is a fault, not a fallback */
             return psys__fail(&s->err, PSYS_ERR_INVALID, "the derivative declined stage %d of a step at t = %.17g",
                               i, ti);
@@ -219,7 +221,7 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
             last = j;
         }
     bool loaded = false;
-    if ((s->ode.derivative_stage || s->ode.derivative_chain) && nw > 0) {
+    if ((s->fast.derivative_stage || s->fast.derivative_chain) && nw > 0) {
         psys_status st = rk_chain_fused(s, tab, t, h, y0, &loaded, y1, nw, last);
         if (st != PSYS_ERR_UNSUPPORTED)
             return st;
@@ -294,7 +296,7 @@ static psys_status rk_chain_stages(psys_solver *s, const psys__tableau *tab, dou
 }
 
 /* psys__solver_commit where the ODE wrote the step's result into its state
- * itself and the start into y1 (psys_stage_pass.in_place, where project
+ * itself and the start into y1 (psys__stage_pass.in_place, where project
  * changes none of the result): the state kept, or y1 put back when the
  * result is not finite, scanned through y0 unless the stages looked. */
 static psys_status rk_commit_in_state(psys_solver *s, double *y0, const double *y1, double t1)

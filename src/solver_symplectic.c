@@ -39,7 +39,7 @@ static psys_status verlet_step(psys_solver *s, double h, double *h_taken)
     size_t np = s->ode.npos;
     double *y0 = s->buf[Y0], *ydot = s->buf[YDOT], *y1 = s->buf[Y1], *ypred = s->buf[YPRED];
     double t = s->ode.get_time(s->ode.ctx), hh = 0.5 * h;
-    const bool vfree = s->ode.velocity_free && s->ode.velocity_free(s->ode.ctx);
+    const bool vfree = s->fast.velocity_free && s->fast.velocity_free(s->ode.ctx);
     s->ode.get_state(s->ode.ctx, y0);
     psys_status st = psys__solver_eval_accel(s, t, y0, ydot);
     if (st != PSYS_OK)

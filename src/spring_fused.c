@@ -10,7 +10,7 @@
  * f = 0 plus the forces listed before the springs), the runs of each block
  * of 256 first particles add their spring forces, and particles that no
  * later run touches leave it (forces listed after the springs, then v and
- * f/m into ydot, or straight into the solver's stage work, psys_stage_pass;
+ * f/m into ydot, or straight into the solver's stage work, psys__stage_pass;
  * on the AVX-512 loops a 3-D system's stage work is done among the next
  * block's springs, exitq). The window stays in cache; y is read once, ydot
  * written once.
@@ -22,6 +22,7 @@
  * own particle ranges and walk the runs touching them (the spring loop's
  * partition), each with its own window, so results do not depend on the
  * thread count either. */
+#include "bench.h"
 #include "springs.h"
 
 #include <math.h>
@@ -79,11 +80,11 @@ typedef struct fused {
     const double *x, *v, *mass, *inv_mass; /* particle-major x, v (y's halves) */
     const uint32_t *perm;                  /* the springs' internal order (slot -> particle), or NULL */
     double *xdot, *vdot;                   /* ydot's halves (no pass) */
-    const psys_stage_pass *pass;           /* or the solver's work on ydot */
+    const psys__stage_pass *pass;           /* or the solver's work on ydot */
     const double *base[2];                 /* the pass's base, x and v halves (the system's own x, v where
                                               the chain reads them in place: psys__fused_chain) */
     double *put[2];                        /* those x, v, where this last pass writes the result there and
-                                              the start into acc (psys_stage_pass.in_place), or NULL */
+                                              the start into acc (psys__stage_pass.in_place), or NULL */
     atomic_int *nonfinite;                 /* set when a pass asked to (.finite) wrote a non-finite acc */
     atomic_size_t *held;                   /* the springs' count of held-back blocks */
     size_t nd;
@@ -181,7 +182,7 @@ static inline double *next_at(const fused *fz, int half, size_t a, const int d)
 {
     if (fz->out_ring && a >= fz->zlo && a < fz->zhi)
         return fz->out_ring + (half ? fz->rd : 0) + (a & fz->rmask) * (size_t)d;
-    const psys_stage_pass *p = fz->pass;
+    const psys__stage_pass *p = fz->pass;
     return p->next ? p->next + (half ? fz->nd : 0) + a * (size_t)d : NULL;
 }
 
@@ -292,30 +293,30 @@ static FUSED_INLINE uint64_t nonfinite_bits(const double *restrict a, size_t m)
     return any;
 }
 
-/* The last pass's work in place (psys_stage_pass.in_place): the result of
- * acc_op 2, 3 or 4 into the state at put, which holds the step's start,
- * and that start into acc; nonfinite_bits of the result where the pass
+/* The last pass's work in place (psys__stage_pass.in_place): the result of
+ * a PSYS__ACC_BASE_* acc_op into the state at put, which holds the step's
+ * start, and that start into acc; nonfinite_bits of the result where the pass
  * asks. The same expressions as stage_apply's. */
-static FUSED_INLINE uint64_t stage_apply_in_place(const psys_stage_pass *p, double *restrict put,
+static FUSED_INLINE uint64_t stage_apply_in_place(const psys__stage_pass *p, double *restrict put,
                                                   double *restrict acc, const double *restrict k, size_t m)
 {
     const double h = p->h, w = p->w;
     switch (p->acc_op) {
-    case 2:
+    case PSYS__ACC_BASE_STEP:
         for (size_t j = 0; j < m; j++) {
             const double b = put[j];
             put[j] = b + h * (w * k[j]);
             acc[j] = b;
         }
         break;
-    case 3:
+    case PSYS__ACC_BASE_FIRST:
         for (size_t j = 0; j < m; j++) {
             const double b = put[j];
             put[j] = b + h * (0.0 + w * k[j]);
             acc[j] = b;
         }
         break;
-    default:
+    default: /* PSYS__ACC_BASE_SUM */
         for (size_t j = 0; j < m; j++) {
             const double b = put[j];
             put[j] = b + h * (acc[j] + w * k[j]);
@@ -326,17 +327,17 @@ static FUSED_INLINE uint64_t stage_apply_in_place(const psys_stage_pass *p, doub
     return p->finite ? nonfinite_bits(put, m) : 0;
 }
 
-/* The solver's work (psys_stage_pass) on derivative components [off, off + m)
+/* The solver's work (psys__stage_pass) on derivative components [off, off + m)
  * with values k and the step's start at base (not always p->base + off:
  * fused.base): the expressions of rk_chain_stages, element by element; or,
  * with put (the same place as base, writable), stage_apply_in_place.
  * Returns nonfinite_bits of what it wrote to acc where the pass asks
  * (.finite), read back while still in cache: the solver then need not pass
  * over the whole result again. */
-static FUSED_INLINE uint64_t stage_apply(const psys_stage_pass *p, const double *restrict base, size_t off,
+static FUSED_INLINE uint64_t stage_apply(const psys__stage_pass *p, const double *restrict base, size_t off,
                                          const double *restrict k, size_t m, double *restrict nx, double *put)
 {
-    if (put) /* the last pass (nx NULL) with acc_op 2..4: base is put */
+    if (put) /* the last pass (nx NULL) with a PSYS__ACC_BASE_* acc_op: base is put */
         return stage_apply_in_place(p, put, p->acc + off, k, m);
     const double h = p->h, w = p->w, an = p->a;
     if (nx) {
@@ -347,23 +348,23 @@ static FUSED_INLINE uint64_t stage_apply(const psys_stage_pass *p, const double 
         return 0;
     double *restrict acc = p->acc + off;
     switch (p->acc_op) {
-    case 0:
+    case PSYS__ACC_SET:
         for (size_t j = 0; j < m; j++)
             acc[j] = 0.0 + w * k[j];
         break;
-    case 1:
+    case PSYS__ACC_ADD:
         for (size_t j = 0; j < m; j++)
             acc[j] = acc[j] + w * k[j];
         break;
-    case 2:
+    case PSYS__ACC_BASE_STEP:
         for (size_t j = 0; j < m; j++)
             acc[j] = base[j] + h * (w * k[j]);
         break;
-    case 3:
+    case PSYS__ACC_BASE_FIRST:
         for (size_t j = 0; j < m; j++)
             acc[j] = base[j] + h * (0.0 + w * k[j]);
         break;
-    default:
+    default: /* PSYS__ACC_BASE_SUM */
         for (size_t j = 0; j < m; j++)
             acc[j] = base[j] + h * (acc[j] + w * k[j]);
         break;
@@ -427,7 +428,7 @@ static FUSED_INLINE void leave_perm(const fused *fz, double *rb, size_t a, size_
         for (size_t j = 0; j < c; j++) {
             const size_t p = fz->perm[a + j0 + j], pd = p * (size_t)d;
             if (j + PERM_AHEAD < c) { /* the particles come from all over memory */
-                const psys_stage_pass *ps = fz->pass;
+                const psys__stage_pass *ps = fz->pass;
                 const size_t p2 = fz->perm[a + j0 + j + PERM_AHEAD], pf = p2 * (size_t)d;
                 PERM_PREFETCH(fz->inv_mass + p2);
                 PERM_PREFETCH(fz->v + pf);
@@ -565,16 +566,16 @@ __attribute__((target("avx512f"), always_inline)) static inline __m512i nonfinit
 /* stage_apply on the 24 components of an octet (k: three vectors), element
  * by element the same expressions. */
 __attribute__((target("avx512f"), always_inline)) static inline __m512i
-stage8(const psys_stage_pass *p, const double *base, double *acc, const __m512d k[3], double *nx, double *put)
+stage8(const psys__stage_pass *p, const double *base, double *acc, const __m512d k[3], double *nx, double *put)
 {
     const __m512d h = _mm512_set1_pd(p->h), w = _mm512_set1_pd(p->w), zero = _mm512_setzero_pd();
     __m512i nf = _mm512_setzero_si512();
     if (put) {
         for (int t = 0; t < 3; t++) {
             const __m512d b = _mm512_loadu_pd(put + 8 * t), wk = _mm512_mul_pd(w, k[t]);
-            const __m512d in = p->acc_op == 2 ? wk
-                               : p->acc_op == 3 ? _mm512_add_pd(zero, wk)
-                                                 : _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk);
+            const __m512d in = p->acc_op == PSYS__ACC_BASE_STEP    ? wk
+                               : p->acc_op == PSYS__ACC_BASE_FIRST ? _mm512_add_pd(zero, wk)
+                                                                    : _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk);
             const __m512d r = _mm512_add_pd(b, _mm512_mul_pd(h, in));
             _mm512_storeu_pd(put + 8 * t, r);
             _mm512_storeu_pd(acc + 8 * t, b);
@@ -594,19 +595,19 @@ stage8(const psys_stage_pass *p, const double *base, double *acc, const __m512d 
         const __m512d wk = _mm512_mul_pd(w, k[t]);
         __m512d r;
         switch (p->acc_op) {
-        case 0:
+        case PSYS__ACC_SET:
             r = _mm512_add_pd(zero, wk);
             break;
-        case 1:
+        case PSYS__ACC_ADD:
             r = _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk);
             break;
-        case 2:
+        case PSYS__ACC_BASE_STEP:
             r = _mm512_add_pd(_mm512_loadu_pd(base + 8 * t), _mm512_mul_pd(h, wk));
             break;
-        case 3:
+        case PSYS__ACC_BASE_FIRST:
             r = _mm512_add_pd(_mm512_loadu_pd(base + 8 * t), _mm512_mul_pd(h, _mm512_add_pd(zero, wk)));
             break;
-        default:
+        default: /* PSYS__ACC_BASE_SUM */
             r = _mm512_add_pd(_mm512_loadu_pd(base + 8 * t),
                               _mm512_mul_pd(h, _mm512_add_pd(_mm512_loadu_pd(acc + 8 * t), wk)));
             break;
@@ -627,7 +628,7 @@ __attribute__((target("avx512f"), always_inline)) static inline void exit8(exitq
     double *V[3], *F[3];
     rows_at(q->rb, fz->S, 1, 3, i0, V);
     rows_at(q->rb, fz->S, 2, 3, i0, F);
-    const psys_stage_pass *p = fz->pass;
+    const psys__stage_pass *p = fz->pass;
     __m512d r[3], k[3];
     for (int c = 0; c < 3; c++)
         r[c] = _mm512_load_pd(V[c]);
@@ -1195,7 +1196,7 @@ static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1,
 /* fz (its forces from eligible()) over sys's springs, windows and
  * particles: the state y, and either ydot or the solver's pass. */
 static void fused_bind(fused *fz, const psys_system *sys, const double *x, const double *v, double *ydot,
-                       const psys_stage_pass *pass, atomic_int *nonfinite)
+                       const psys__stage_pass *pass, atomic_int *nonfinite)
 {
     const springs *s = sys->springs;
     const size_t nd = sys->n * (size_t)sys->dim;
@@ -1230,11 +1231,11 @@ static void fused_bind(fused *fz, const psys_system *sys, const double *x, const
     fz->planes = sys->nplanes ? sys : NULL;
 }
 
-/* Answers the passes that asked (psys_stage_pass.finite) once their sweeps
+/* Answers the passes that asked (psys__stage_pass.finite) once their sweeps
  * are done: whether all they wrote to acc was finite (nonfinite unset).
  * Controlled particles: not answered, since the solver's projection of the
  * result may change it. */
-static void answer_finite(const psys_system *sys, const psys_stage_pass *pass, int stages, atomic_int *nonfinite)
+static void answer_finite(const psys_system *sys, const psys__stage_pass *pass, int stages, atomic_int *nonfinite)
 {
     for (int i = 0; pass && i < stages; i++)
         if (pass[i].finite && pass[i].acc && sys->nctrl == 0)
@@ -1248,7 +1249,7 @@ bool psys__fused_eligible(const psys_system *sys)
 }
 
 psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,
-                                   const psys_stage_pass *pass, bool *used)
+                                   const psys__stage_pass *pass, bool *used)
 {
     fused fz;
     *used = false;
@@ -1285,7 +1286,7 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     return PSYS_OK;
 }
 
-/* ---- Every stage of a chain step in one sweep (psys_ode.derivative_chain)
+/* ---- Every stage of a chain step in one sweep (psys__ode_fast.derivative_chain)
  *
  * A sweep that has let particles before p leave its window has loaded the
  * state only below p + reach (reach = max_off + 2·SPRING_BLOCK: a run
@@ -1462,7 +1463,7 @@ int psys__fused_chain_pick(const psys_system *sys)
     return s && s->chain.keyed ? s->chain.pick : -1;
 }
 
-bool psys_system_timing_settled(const psys_system *sys)
+bool psys__system_timing_settled(const psys_system *sys)
 {
     const springs *s = sys->springs;
     /* timing started (a mode under way) and not yet decided */
@@ -1497,7 +1498,7 @@ static void stage_rings(fused *dst, const fused *src, int stages, double *mem, s
 }
 
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
-                              const psys_stage_pass *pass, bool *used)
+                              const psys__stage_pass *pass, bool *used)
 {
     fused fz[CHAIN_MAX_STAGES];
     *used = false;
@@ -1531,12 +1532,13 @@ psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const 
         fused_bind(&fz[i], sys, y ? y : sys->x, y ? y + nd : sys->v, NULL, &pass[i], &nonfinite);
     }
     /* The last pass's result straight into x and v, the start into acc
-     * (psys_stage_pass.in_place), where the start is read there (y0 NULL)
+     * (psys__stage_pass.in_place), where the start is read there (y0 NULL)
      * and nothing is projected. Every stage reads a particle's start before
      * the last stage leaves it (that needs their states around it), on any
      * thread, so no read of the start comes after its write. */
-    const psys_stage_pass *fin = &pass[stages - 1];
-    const bool in_place = !y0 && fin->in_place && fin->acc && !fin->next && fin->acc_op >= 2 && sys->nctrl == 0;
+    const psys__stage_pass *fin = &pass[stages - 1];
+    const bool in_place = !y0 && fin->in_place && fin->acc && !fin->next && fin->acc_op >= PSYS__ACC_BASE_STEP &&
+                          sys->nctrl == 0;
     if (in_place) {
         fz[stages - 1].put[0] = sys->x;
         fz[stages - 1].put[1] = sys->v;

@@ -1,6 +1,6 @@
 /* The particle system: SoA particles, the force list, and its ODE view. */
 #include "internal.h"
-#include "solver.h"
+#include "solver_fast.h"
 
 #include <float.h>
 #include <math.h>
@@ -544,7 +544,7 @@ static psys_status ode_derivative(void *ctx, double t, const double *y, double *
     return derivative_into(ctx, t, y, ydot, true);
 }
 
-/* The accelerations only (psys_ode.acceleration): the derivative less its
+/* The accelerations only (psys__ode_fast.acceleration): the derivative less its
  * copy of v into ydot's first half, where the fused sweep does not take
  * the system (it writes both halves anyway). */
 static psys_status ode_acceleration(void *ctx, double t, const double *y, double *ydot)
@@ -552,7 +552,7 @@ static psys_status ode_acceleration(void *ctx, double t, const double *y, double
     return derivative_into(ctx, t, y, ydot, false);
 }
 
-/* Whether no force reads the velocities (psys_ode.velocity_free): only
+/* Whether no force reads the velocities (psys__ode_fast.velocity_free): only
  * pair forces (functions of the distances, user laws included) and uniform
  * gravity, and no planes (contact and friction) or controlled particles
  * (whose prescribed velocities the solver's projection writes). */
@@ -571,7 +571,7 @@ static bool ode_velocity_free(void *ctx)
 
 /* The derivative with the solver's stage work applied as it is computed:
  * only where the fused derivative takes the system. */
-static psys_status ode_derivative_stage(void *ctx, double t, const double *y, const psys_stage_pass *pass)
+static psys_status ode_derivative_stage(void *ctx, double t, const double *y, const psys__stage_pass *pass)
 {
     psys_system *s = ctx;
     if (!y)
@@ -586,7 +586,7 @@ static psys_status ode_derivative_stage(void *ctx, double t, const double *y, co
 
 /* The chain sweep of a step from y0, or from the system's own x and v
  * (y0 NULL: psys__fused_chain). */
-static psys_status chain_from(psys_system *s, double t, const double *y0, int stages, const psys_stage_pass *pass)
+static psys_status chain_from(psys_system *s, double t, const double *y0, int stages, const psys__stage_pass *pass)
 {
     psys_force_eval e;
     psys__sys_eval(s, t, y0 ? y0 : s->x, y0 ? y0 + s->n * (size_t)s->dim : s->v, &e);
@@ -600,7 +600,7 @@ static psys_status chain_from(psys_system *s, double t, const double *y0, int st
  * system and nothing depends on the stage time: no controlled particles
  * (project), no muscles (rest lengths of t). */
 static psys_status ode_derivative_chain(void *ctx, double t, const double *y0, int stages, const double *c,
-                                        const psys_stage_pass *pass)
+                                        const psys__stage_pass *pass)
 {
     psys_system *s = ctx;
     (void)c; /* the forces the chain takes do not depend on time */
@@ -611,11 +611,11 @@ static psys_status ode_derivative_chain(void *ctx, double t, const double *y0, i
 
 /* derivative_chain from the system's own x and v: no copy of the state
  * into the solver's y0, and the result written back into x and v where the
- * solver offers it (psys_stage_pass.in_place), no copy out either. Not with
+ * solver offers it (psys__stage_pass.in_place), no copy out either. Not with
  * the state in the springs' order, where the solver's vectors and x, v
  * differ in order. */
 static psys_status ode_derivative_chain_current(void *ctx, double t, int stages, const double *c,
-                                                const psys_stage_pass *pass)
+                                                const psys__stage_pass *pass)
 {
     psys_system *s = ctx;
     (void)c;
@@ -657,11 +657,6 @@ psys_ode psys_system_ode(psys_system *s)
     o.get_time = ode_get_time;
     o.set_time = ode_set_time;
     o.derivative = ode_derivative;
-    o.derivative_stage = ode_derivative_stage;
-    o.derivative_chain = ode_derivative_chain;
-    o.derivative_chain_current = ode_derivative_chain_current;
-    o.acceleration = ode_acceleration;
-    o.velocity_free = ode_velocity_free;
     o.project = ode_project;
     o.mass = ode_mass;
     o.jacobian = ode_jacobian;
@@ -669,18 +664,37 @@ psys_ode psys_system_ode(psys_system *s)
     return o;
 }
 
+psys__ode_fast psys__system_ode_fast(psys_system *s)
+{
+    (void)s; /* the hooks take the system as ctx, as psys_system_ode's callbacks do */
+    psys__ode_fast f;
+    f.derivative_stage = ode_derivative_stage;
+    f.acceleration = ode_acceleration;
+    f.velocity_free = ode_velocity_free;
+    f.derivative_chain = ode_derivative_chain;
+    f.derivative_chain_current = ode_derivative_chain_current;
+    return f;
+}
+
+psys_solver *psys_system_solver_create(psys_system *s, const char *name, psys_error *err)
+{
+    if (!s) {
+        psys__fail(err, PSYS_ERR_INVALID, "no system to create a solver for");
+        return NULL;
+    }
+    const psys_ode o = psys_system_ode(s);
+    const psys__ode_fast f = psys__system_ode_fast(s);
+    return psys__solver_create_fast(name, &o, &f, s, err);
+}
+
 bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
 {
     s->ode_perm = NULL;
-    const psys_ode *o = &solver->ode;
-    /* The solver's state is the system's own ODE's, with none of its
-     * callbacks replaced (a replacement could read the state by particle) */
-    const bool own = o->ctx == s && o->size == 2 * s->n * (size_t)s->dim && o->get_state == ode_get_state &&
-                     o->set_state == ode_set_state && o->derivative == ode_derivative &&
-                     o->acceleration == ode_acceleration && o->derivative_stage == ode_derivative_stage &&
-                     o->derivative_chain == ode_derivative_chain &&
-                     o->derivative_chain_current == ode_derivative_chain_current && o->project == ode_project;
-    if (!own || !solver->cls->elementwise || s->nplanes || s->dist)
+    /* Only a solver psys_system_solver_create made for s, of s's current
+     * size: any other ODE on s (a user's wrapper) may read the state by
+     * particle. */
+    const bool own = psys__solver_owner(solver) == s && psys__solver_size(solver) == 2 * s->n * (size_t)s->dim;
+    if (!own || !psys__solver_elementwise(solver) || s->nplanes || s->dist)
         return false;
     const char *env = getenv("PSYS_STATE_ORDER");
     if (env && env[0] == '0')

@@ -51,10 +51,16 @@ static inline psys_solver *make_ode_solver(const char *name, const psys_ode *ode
     return s;
 }
 
+/* The system's own solver, with its fast paths (psys_system_solver_create). */
 static inline psys_solver *make_solver(const char *name, psys_system *sys)
 {
-    psys_ode ode = psys_system_ode(sys);
-    return make_ode_solver(name, &ode);
+    psys_error err;
+    psys_solver *s = psys_system_solver_create(sys, name, &err);
+    if (!s) {
+        fprintf(stderr, "psys_system_solver_create(%s): %s\n", name, err.message);
+        exit(1);
+    }
+    return s;
 }
 
 /* ------------------------------------------------------------------ */

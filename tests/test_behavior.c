@@ -616,9 +616,8 @@ static void user_parabola_simulation(void)
         def.kd = 20;
         def.fd_jacobian = w == 1;
         add_behavior_ok(sys, &def);
-        psys_ode ode = psys_system_ode(sys);
         psys_error err;
-        psys_solver *s = psys_solver_create("rk4", &ode, &err);
+        psys_solver *s = psys_system_solver_create(sys, "rk4", &err);
         CHECK(s != NULL);
         if (!s)
             return;

@@ -89,8 +89,7 @@ static void library_leaves_mode(void)
         CHECK(psys_system_set_fixed(s, 0, true) == PSYS_OK);
         CHECK(psys_system_add_gravity(s, g) == PSYS_OK);
         CHECK(psys_system_add_spring(s, 0, 1, 100.0, 0.5, 1.0) == PSYS_OK);
-        psys_ode o = psys_system_ode(s);
-        psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+        psys_solver *sv = psys_system_solver_create(s, "rk4", NULL);
         CHECK(sv != NULL);
         for (int k = 0; k < 20; k++) {
             double taken;

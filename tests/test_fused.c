@@ -4,6 +4,7 @@
 #define _POSIX_C_SOURCE 200809L /* setenv */
 #include "check.h"
 
+#include "../src/bench.h"
 #include "../src/internal.h"
 #include "../src/springs.h"
 
@@ -376,9 +377,9 @@ static void shuffled_same_physics(void)
 }
 
 /* The system's derivative_stage, counting the stages it computes. */
-static psys_status (*system_stage)(void *ctx, double t, const double *y, const psys_stage_pass *pass);
+static psys_status (*system_stage)(void *ctx, double t, const double *y, const psys__stage_pass *pass);
 static long stage_calls;
-static psys_status counting_stage(void *ctx, double t, const double *y, const psys_stage_pass *pass)
+static psys_status counting_stage(void *ctx, double t, const double *y, const psys__stage_pass *pass)
 {
     if (y)
         stage_calls++;
@@ -401,11 +402,12 @@ static void runs_same_bits(void)
                 psys_system *s = build(kind);
                 CHECK(psys_system_set_threads(s, fused ? 2 : 1) == PSYS_OK);
                 psys_ode o = psys_system_ode(s);
-                system_stage = o.derivative_stage;
-                o.derivative_stage = counting_stage;
-                o.derivative_chain = NULL; /* stage by stage here; chain_same_bits compares the chain */
+                psys__ode_fast f = psys__system_ode_fast(s);
+                system_stage = f.derivative_stage;
+                f.derivative_stage = counting_stage;
+                f.derivative_chain = NULL; /* stage by stage here; chain_same_bits compares the chain */
                 stage_calls = 0;
-                psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
+                psys_solver *sv = psys__solver_create_fast(solvers[k], &o, &f, NULL, NULL);
                 CHECK(sv != NULL);
                 for (int step = 0; step < 10; step++) {
                     double taken;
@@ -475,10 +477,10 @@ static psys_system *reach_edge(size_t n, size_t off)
 
 /* The system's derivative_chain, counting the steps it takes. */
 static psys_status (*system_chain)(void *ctx, double t, const double *y0, int stages, const double *c,
-                                   const psys_stage_pass *pass);
+                                   const psys__stage_pass *pass);
 static long chain_calls;
 static psys_status counting_chain(void *ctx, double t, const double *y0, int stages, const double *c,
-                                  const psys_stage_pass *pass)
+                                  const psys__stage_pass *pass)
 {
     if (y0)
         chain_calls++;
@@ -488,10 +490,10 @@ static psys_status counting_chain(void *ctx, double t, const double *y0, int sta
 /* The same for derivative_chain_current (the chain from the system's state
  * where it is); chain_current_calls counts the steps it takes. */
 static psys_status (*system_chain_current)(void *ctx, double t, int stages, const double *c,
-                                           const psys_stage_pass *pass);
+                                           const psys__stage_pass *pass);
 static long chain_current_calls;
 static psys_status counting_chain_current(void *ctx, double t, int stages, const double *c,
-                                          const psys_stage_pass *pass)
+                                          const psys__stage_pass *pass)
 {
     psys_status st = system_chain_current(ctx, t, stages, c, pass);
     if (st == PSYS_OK) {
@@ -501,15 +503,26 @@ static psys_status counting_chain_current(void *ctx, double t, int stages, const
     return st;
 }
 
-/* o with its chain callbacks counted; current: derivative_chain_current
- * kept (else NULL: the solver copies the state for derivative_chain). */
-static void count_chains(psys_ode *o, bool current)
+/* A solver for s with the system's fast paths, its chain callbacks
+ * counted; current: derivative_chain_current kept (else NULL: the solver
+ * copies the state for derivative_chain). No owner, as for any replaced
+ * callback: the state stays in the particles' order. */
+static psys_solver *counting_chains(const char *name, psys_system *s, bool current)
 {
-    system_chain = o->derivative_chain;
-    system_chain_current = o->derivative_chain_current;
-    o->derivative_chain = counting_chain;
-    o->derivative_chain_current = current ? counting_chain_current : NULL;
+    const psys_ode o = psys_system_ode(s);
+    psys__ode_fast f = psys__system_ode_fast(s);
+    system_chain = f.derivative_chain;
+    system_chain_current = f.derivative_chain_current;
+    f.derivative_chain = counting_chain;
+    f.derivative_chain_current = current ? counting_chain_current : NULL;
     chain_calls = chain_current_calls = 0;
+    return psys__solver_create_fast(name, &o, &f, NULL, NULL);
+}
+
+/* Whether the system's derivative_chain would take a step of s of that many stages. */
+static psys_status chain_asked(psys_system *s, int stages)
+{
+    return psys__system_ode_fast(s).derivative_chain(s, 0, NULL, stages, NULL, NULL);
 }
 
 /* A copy of o's state (*size components). */
@@ -573,8 +586,7 @@ static void chain_same_bits(void)
                 const int threads = run == 0 || run == 7 ? 1 : run <= 4 ? run : run == 5 ? 1 : 3;
                 CHECK(psys_system_set_threads(s, threads) == PSYS_OK);
                 psys_ode o = psys_system_ode(s);
-                count_chains(&o, run <= 4);
-                psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
+                psys_solver *sv = counting_chains(solvers[k], s, run <= 4);
                 CHECK(sv != NULL);
                 for (int step = 0; step < 6; step++) {
                     double taken;
@@ -604,34 +616,31 @@ static void chain_same_bits(void)
      * timing (chain_timed): the first step asked about is the chain's, the
      * second stage by stage's; PSYS_CHAIN=1 always takes it. */
     psys_system *s = rope(3000, 3);
-    psys_ode o = psys_system_ode(s);
-    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
+    CHECK(chain_asked(s, 4) == PSYS_OK);
     psys_system_destroy(s);
     s = psys_system_create(3, NULL);
     add_particles(s, 3, 300 * 4, 300);
     sheet_springs(s, 0, 300, 4);
-    o = psys_system_ode(s);
-    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
-    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_ERR_UNSUPPORTED);
+    CHECK(chain_asked(s, 4) == PSYS_OK);
+    CHECK(chain_asked(s, 4) == PSYS_ERR_UNSUPPORTED);
     setenv("PSYS_CHAIN", "1", 1);
-    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
+    CHECK(chain_asked(s, 4) == PSYS_OK);
     unsetenv("PSYS_CHAIN");
     psys_system_destroy(s);
     /* controlled particles: left to the stages (the projection) */
     setenv("PSYS_CHAIN", "1", 1);
     s = build(SHEET);
-    o = psys_system_ode(s);
-    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_OK);
+    CHECK(chain_asked(s, 4) == PSYS_OK);
     const double centre[3] = {0, 0, 0}, dir[3] = {1, 0, 0};
     CHECK(psys_system_control_oscillate(s, 7, centre, dir, 0.1, 3.0, 0) == PSYS_OK);
-    CHECK(o.derivative_chain(o.ctx, 0, NULL, 4, NULL, NULL) == PSYS_ERR_UNSUPPORTED);
+    CHECK(chain_asked(s, 4) == PSYS_ERR_UNSUPPORTED);
     unsetenv("PSYS_CHAIN");
     psys_system_destroy(s);
 }
 
 /* Springs reaching beyond 600 particles: the first six rk4 steps time the
  * chain (odd steps) against stage by stage (even ones), and the one whose
- * fastest step was faster takes every later step; psys_system_timing_settled
+ * fastest step was faster takes every later step; psys__system_timing_settled
  * turns true with the choice and false again when the particle count,
  * the springs or the thread count change. The same bits as stage by stage throughout. PSYS_CHAIN=0 or 1
  * times nothing. A step's time runs to the next step, so 50 ms spent by
@@ -650,8 +659,7 @@ static void chain_timed(void)
         psys_system *s = rope(3000, 3);
         spring(s, 0, 700); /* reach 700 + 512 */
         psys_ode o = psys_system_ode(s);
-        count_chains(&o, true);
-        psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+        psys_solver *sv = counting_chains("rk4", s, true);
         CHECK(sv != NULL);
         CHECK(psys__fused_chain_pick(s) == -1);
         long calls_before_choice = 0;
@@ -659,7 +667,7 @@ static void chain_timed(void)
             double taken;
             CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
             /* asked at step 7 after six timed steps, the choice is made */
-            CHECK(psys_system_timing_settled(s) == (!timed || step >= 7));
+            CHECK(psys__system_timing_settled(s) == (!timed || step >= 7));
             CHECK((psys__fused_chain_pick(s) >= 0) == (timed && step >= 7));
             if (step == 6)
                 calls_before_choice = chain_calls;
@@ -690,7 +698,7 @@ static void chain_timed(void)
                     double taken;
                     CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
                 }
-                CHECK(psys_system_timing_settled(s));
+                CHECK(psys__system_timing_settled(s));
                 if (change == 0) {
                     const double p[3] = {0, 0, 0}, v[3] = {0, 0, 0};
                     CHECK(psys_system_add_particle(s, p, v, 1.0, NULL, NULL) == PSYS_OK);
@@ -701,10 +709,10 @@ static void chain_timed(void)
                 }
                 psys_solver_destroy(sv);
                 o = psys_system_ode(s);
-                sv = psys_solver_create("rk4", &o, NULL);
+                sv = psys_system_solver_create(s, "rk4", NULL);
                 double taken;
                 CHECK(psys_solver_step(sv, 1e-4, &taken) == PSYS_OK);
-                CHECK(!psys_system_timing_settled(s));
+                CHECK(!psys__system_timing_settled(s));
                 CHECK(psys__fused_chain_pick(s) == -1);
             }
         }
@@ -731,8 +739,9 @@ static double *state_of(const psys_system *s)
  * elementwise solver, stage by stage, chained (variant 1) and with
  * controlled particles (variant 2: the projection finds their slots), on 1
  * to 3 threads; rk45 (its error norm sums over the state), a mesh in its
- * own order and a replaced callback keep the particles' order; and a step
- * that blows up names the same component either way. */
+ * own order, a solver of the caller's on the system's ODE and a solver made
+ * for another system keep the particles' order; and a step that blows up
+ * names the same component either way. */
 static void state_order_same_bits(void)
 {
     static const char *const solvers[] = {"euler", "midpoint", "rk4", "symplectic-euler", "verlet", "rk45"};
@@ -754,8 +763,7 @@ static void state_order_same_bits(void)
                     CHECK(psys_system_control_oscillate(s, 7, centre, dir, 0.1, 3.0, 0) == PSYS_OK);
                     CHECK(psys_system_control_oscillate(s, 2000, centre2, dir2, 0.2, 5.0, 1) == PSYS_OK);
                 }
-                psys_ode o = psys_system_ode(s);
-                psys_solver *sv = psys_solver_create(solvers[k], &o, NULL);
+                psys_solver *sv = psys_system_solver_create(s, solvers[k], NULL);
                 CHECK(sv != NULL);
                 CHECK(psys__state_order_begin(s, sv) == (run > 0 && k + 1 < nsolvers));
                 psys__state_order_end(s);
@@ -782,22 +790,26 @@ static void state_order_same_bits(void)
 
     /* where it stays in the particles' order */
     psys_system *s = build(SHEET); /* numbered in rows: no internal order */
-    psys_ode o = psys_system_ode(s);
-    psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+    psys_solver *sv = psys_system_solver_create(s, "rk4", NULL);
     CHECK(!psys__state_order_begin(s, sv));
     psys_solver_destroy(sv);
     psys_system_destroy(s);
     s = build(SHEET_SHUFFLED);
-    o = psys_system_ode(s);
-    sv = psys_solver_create("rk4", &o, NULL);
+    sv = psys_system_solver_create(s, "rk4", NULL);
     CHECK(psys__state_order_begin(s, sv));
     psys__state_order_end(s);
     psys_solver_destroy(sv);
-    system_stage = o.derivative_stage;
-    o.derivative_stage = counting_stage; /* a callback of the caller's */
-    sv = psys_solver_create("rk4", &o, NULL);
+    psys_ode o = psys_system_ode(s);
+    sv = psys_solver_create("rk4", &o, NULL); /* the caller's solver: no fast paths, no owner */
     CHECK(!psys__state_order_begin(s, sv));
     psys_solver_destroy(sv);
+    psys_system *other = build(SHEET_SHUFFLED);
+    sv = psys_system_solver_create(other, "rk4", NULL); /* made for another system of the same size */
+    CHECK(!psys__state_order_begin(s, sv));
+    CHECK(psys__state_order_begin(other, sv));
+    psys__state_order_end(other);
+    psys_solver_destroy(sv);
+    psys_system_destroy(other);
     psys_system_destroy(s);
 
     /* a blow-up (steps far beyond the springs' stability limit): the same
@@ -806,8 +818,7 @@ static void state_order_same_bits(void)
     for (int run = 0; run < 2; run++) {
         setenv("PSYS_STATE_ORDER", run == 0 ? "0" : "1", 1);
         s = build(SHEET_SHUFFLED);
-        o = psys_system_ode(s);
-        sv = psys_solver_create("rk4", &o, NULL);
+        sv = psys_system_solver_create(s, "rk4", NULL);
         psys_status st = PSYS_OK;
         size_t step = 0;
         while (st == PSYS_OK && step < 2000) {
@@ -879,7 +890,7 @@ static double *changes_run(bool ordered)
         if (phase == 0 || psys_system_count(s) != o.size / 6) { /* a new system size, a new solver */
             psys_solver_destroy(sv);
             o = psys_system_ode(s);
-            sv = psys_solver_create("rk4", &o, NULL);
+            sv = psys_system_solver_create(s, "rk4", NULL);
             CHECK(sv != NULL);
         }
         for (int step = 0; step < 3; step++)
@@ -904,8 +915,7 @@ static void state_order_cache(void)
     free(got);
 
     psys_system *s = build(SHEET_SHUFFLED);
-    psys_ode o = psys_system_ode(s);
-    psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+    psys_solver *sv = psys_system_solver_create(s, "rk4", NULL);
     CHECK(psys__state_order_begin(s, sv));
     psys__state_order_end(s);
     const double m0 = s->ode_mass[0];
@@ -1044,7 +1054,7 @@ static void planes_same_bits(void)
             s = on_planes(dim, shuffle, &probe);
             CHECK(psys_system_set_threads(s, run == 3 ? 2 : 1) == PSYS_OK);
             psys_ode so = psys_system_ode(s);
-            psys_solver *sv = psys_solver_create("rk4", &so, NULL);
+            psys_solver *sv = psys_system_solver_create(s, "rk4", NULL);
             CHECK(sv != NULL);
             for (int step = 0; step < 8; step++) {
                 double taken;
@@ -1139,8 +1149,7 @@ static void avx512_switch(void)
 static size_t held_after_steps(psys_system *s, bool chain)
 {
     setenv("PSYS_CHAIN", chain ? "1" : "0", 1);
-    psys_ode o = psys_system_ode(s);
-    psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+    psys_solver *sv = psys_system_solver_create(s, "rk4", NULL);
     CHECK(sv != NULL);
     for (int step = 0; step < 2; step++) {
         double taken;
@@ -1189,12 +1198,12 @@ static void holds_back_where_large(void)
     free(keep);
 }
 
-/* The answers of the system's sweeps to psys_stage_pass.finite, counted by
+/* The answers of the system's sweeps to psys__stage_pass.finite, counted by
  * wrappers of derivative_chain and derivative_stage: [0] "not finite", [1]
  * "finite", [2] none given on a pass that asked; and the steps whose
- * result went straight into the state (psys_stage_pass.in_place). */
+ * result went straight into the state (psys__stage_pass.in_place). */
 static long finite_answers[3], in_place_steps;
-static void count_answer(const psys_stage_pass *pass, int stages)
+static void count_answer(const psys__stage_pass *pass, int stages)
 {
     for (int i = 0; i < stages; i++) {
         if (pass[i].finite)
@@ -1204,7 +1213,7 @@ static void count_answer(const psys_stage_pass *pass, int stages)
     }
 }
 static psys_status answering_chain(void *ctx, double t, const double *y0, int stages, const double *c,
-                                   const psys_stage_pass *pass)
+                                   const psys__stage_pass *pass)
 {
     psys_status st = system_chain(ctx, t, y0, stages, c, pass);
     if (y0 && st == PSYS_OK)
@@ -1212,14 +1221,14 @@ static psys_status answering_chain(void *ctx, double t, const double *y0, int st
     return st;
 }
 static psys_status answering_chain_current(void *ctx, double t, int stages, const double *c,
-                                           const psys_stage_pass *pass)
+                                           const psys__stage_pass *pass)
 {
     psys_status st = system_chain_current(ctx, t, stages, c, pass);
     if (st == PSYS_OK)
         count_answer(pass, stages);
     return st;
 }
-static psys_status answering_stage(void *ctx, double t, const double *y, const psys_stage_pass *pass)
+static psys_status answering_stage(void *ctx, double t, const double *y, const psys__stage_pass *pass)
 {
     psys_status st = system_stage(ctx, t, y, pass);
     if (y && st == PSYS_OK)
@@ -1228,7 +1237,7 @@ static psys_status answering_stage(void *ctx, double t, const double *y, const p
 }
 
 /* A blow-up (rk4 steps far beyond the springs' stability limit) found by
- * the sweeps' own look at the result as they write it (psys_stage_pass.finite,
+ * the sweeps' own look at the result as they write it (psys__stage_pass.finite,
  * which spares the solver a pass over the state) exactly where the
  * solver's look finds it: the same step, the same first non-finite
  * component, the state of the step before kept, on every path (the plain
@@ -1237,7 +1246,7 @@ static psys_status answering_stage(void *ctx, double t, const double *y, const p
  * every step before and "not finite" on the last; with a controlled
  * particle (whose projection could change the result) they must not
  * answer. The chain writes every step's result straight into the state
- * (psys_stage_pass.in_place), the failed one too, which the solver then
+ * (psys__stage_pass.in_place), the failed one too, which the solver then
  * undoes. */
 static void sweeps_find_nonfinite(void)
 {
@@ -1253,13 +1262,14 @@ static void sweeps_find_nonfinite(void)
                                                     0.1, 3.0, 0) == PSYS_OK);
             CHECK(psys_system_set_threads(s, run < 2 ? 1 : run - 1) == PSYS_OK);
             psys_ode o = psys_system_ode(s);
-            system_chain = o.derivative_chain;
-            system_chain_current = o.derivative_chain_current;
-            system_stage = o.derivative_stage;
-            o.derivative_chain = answering_chain;
-            o.derivative_chain_current = answering_chain_current;
-            o.derivative_stage = answering_stage;
-            psys_solver *sv = psys_solver_create("rk4", &o, NULL);
+            psys__ode_fast f = psys__system_ode_fast(s);
+            system_chain = f.derivative_chain;
+            system_chain_current = f.derivative_chain_current;
+            system_stage = f.derivative_stage;
+            f.derivative_chain = answering_chain;
+            f.derivative_chain_current = answering_chain_current;
+            f.derivative_stage = answering_stage;
+            psys_solver *sv = psys__solver_create_fast("rk4", &o, &f, NULL, NULL);
             CHECK(sv != NULL);
             memset(finite_answers, 0, sizeof finite_answers);
             in_place_steps = 0;

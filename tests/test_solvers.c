@@ -6,6 +6,8 @@
 
 #include <psys/psys.h>
 
+#include "../src/internal.h" /* psys__system_ode_fast */
+
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
@@ -397,12 +399,7 @@ static psys_ode counted_ode(counted *c, psys_system *sys)
     o.set_time = w_set_time;
     o.derivative = w_deriv;
     o.project = c->inner.project ? w_project : NULL;
-    o.derivative_stage = NULL; /* it would bypass w_deriv's count (and take the system as ctx) */
-    o.derivative_chain = NULL; /* likewise */
-    o.derivative_chain_current = NULL; /* likewise */
-    o.acceleration = NULL;     /* likewise */
-    o.velocity_free = NULL;    /* (it takes the system as ctx) */
-    return o;
+    return o; /* a user's ODE has no fast paths that could bypass w_deriv's count */
 }
 
 typedef struct rk45_result {
@@ -964,12 +961,13 @@ static psys_system *fast_path_system(int kind)
     return sys;
 }
 
-/* psys_system_ode's acceleration and velocity_free: symplectic-euler and
- * verlet give the same bits with them as through derivative alone (an ODE
- * without them), and velocity_free holds exactly for systems whose forces
- * ignore the velocities; a velocity_free that held with drag, damping,
- * planes or controlled particles would make verlet's second evaluation
- * see v½ instead of the predicted velocity, and differ. */
+/* The system's acceleration and velocity_free fast paths
+ * (psys_system_solver_create): symplectic-euler and verlet give the same
+ * bits with them as through derivative alone (psys_solver_create on
+ * psys_system_ode), and velocity_free holds exactly for systems whose
+ * forces ignore the velocities; a velocity_free that held with drag,
+ * damping, planes or controlled particles would make verlet's second
+ * evaluation see v½ instead of the predicted velocity, and differ. */
 static void verlet_fast_paths(void)
 {
     for (int kind = 0; kind <= 6; kind++)
@@ -977,11 +975,10 @@ static void verlet_fast_paths(void)
             const char *name = which ? "symplectic-euler" : "verlet";
             psys_system *a = fast_path_system(kind), *b = fast_path_system(kind);
             psys_ode oa = psys_system_ode(a), ob = psys_system_ode(b);
-            CHECK(oa.acceleration != NULL && oa.velocity_free != NULL);
-            CHECK(oa.velocity_free(oa.ctx) == (kind <= 1));
-            ob.acceleration = NULL;
-            ob.velocity_free = NULL;
-            psys_solver *sa = make_ode_solver(name, &oa), *sb = make_ode_solver(name, &ob);
+            const psys__ode_fast fa = psys__system_ode_fast(a);
+            CHECK(fa.acceleration != NULL && fa.velocity_free != NULL);
+            CHECK(fa.velocity_free(a) == (kind <= 1));
+            psys_solver *sa = make_solver(name, a), *sb = make_ode_solver(name, &ob);
             for (int step = 0; step < 60; step++) {
                 CHECK(psys_system_advance(a, sa, 0.004, NULL) == PSYS_OK);
                 CHECK(psys_system_advance(b, sb, 0.004, NULL) == PSYS_OK);
@@ -992,8 +989,111 @@ static void verlet_fast_paths(void)
             double y[162], d1[162], d2[162];
             oa.get_state(oa.ctx, y);
             CHECK(oa.derivative(oa.ctx, 0.24, y, d1) == PSYS_OK);
-            CHECK(oa.acceleration(oa.ctx, 0.24, y, d2) == PSYS_OK);
+            CHECK(fa.acceleration(a, 0.24, y, d2) == PSYS_OK);
             CHECK(memcmp(d1 + 81, d2 + 81, 81 * sizeof(double)) == 0);
+            psys_solver_destroy(sa);
+            psys_solver_destroy(sb);
+            psys_system_destroy(a);
+            psys_system_destroy(b);
+        }
+}
+
+/* A cloth of nx × ny particles (3-D) numbered at random when shuffled,
+ * with structural and shear springs, gravity and drag, two corners pinned;
+ * with planes, a floor it partly lies on (friction) and a sticky wall. */
+static psys_system *cloth(int nx, int ny, bool shuffled, bool planes)
+{
+    const size_t n = (size_t)nx * (size_t)ny;
+    size_t *at = malloc(n * sizeof *at); /* grid point -> particle */
+    CHECK(at != NULL);
+    for (size_t i = 0; i < n; i++)
+        at[i] = i;
+    urand_seed(11);
+    for (size_t i = n - 1; shuffled && i > 0; i--) {
+        size_t j = (size_t)urand(0, (double)(i + 1));
+        j = j > i ? i : j;
+        const size_t t = at[i];
+        at[i] = at[j];
+        at[j] = t;
+    }
+    size_t *inv = malloc(n * sizeof *inv);
+    CHECK(inv != NULL);
+    for (size_t i = 0; i < n; i++)
+        inv[at[i]] = i;
+    psys_system *sys = make_system(3);
+    for (size_t q = 0; q < n; q++) {
+        const size_t g = inv[q], r = g / (size_t)nx, c = g % (size_t)nx;
+        double x[3] = {0.05 * (double)c, 0.05 * (double)r, planes && r < 5 ? 0.0 : 0.2 + urand(-0.01, 0.01)};
+        double v[3] = {urand(-0.1, 0.1), urand(-0.1, 0.1), planes && r < 5 ? 0.0 : urand(-0.5, 0.1)};
+        add_particle(sys, x, v, 0.01 + urand(0, 0.002));
+    }
+    for (int r = 0; r < ny; r++)
+        for (int c = 0; c < nx; c++) {
+            const size_t g = (size_t)r * (size_t)nx + (size_t)c;
+            if (c + 1 < nx)
+                CHECK(psys_system_add_spring(sys, at[g], at[g + 1], 400.0, 0.02, -1) == PSYS_OK);
+            if (r + 1 < ny)
+                CHECK(psys_system_add_spring(sys, at[g], at[g + (size_t)nx], 400.0, 0.02, -1) == PSYS_OK);
+            if (c + 1 < nx && r + 1 < ny)
+                CHECK(psys_system_add_spring(sys, at[g], at[g + (size_t)nx + 1], 200.0, 0.01, -1) == PSYS_OK);
+        }
+    const double g3[3] = {0, 0, -9.81};
+    CHECK(psys_system_add_gravity(sys, g3) == PSYS_OK);
+    CHECK(psys_system_add_drag(sys, 0.02) == PSYS_OK);
+    CHECK(psys_system_set_fixed(sys, at[n - 1], true) == PSYS_OK);
+    CHECK(psys_system_set_fixed(sys, at[n - (size_t)nx], true) == PSYS_OK);
+    if (planes) {
+        psys_plane_def floor = psys_plane_def_default(), wall = psys_plane_def_default();
+        floor.normal[0] = 0, floor.normal[1] = 0, floor.normal[2] = 1;
+        floor.friction = 0.5;
+        wall.normal[0] = 1, wall.normal[1] = 0, wall.normal[2] = 0;
+        wall.point[0] = -0.01;
+        wall.stick = true;
+        CHECK(psys_system_add_plane(sys, &floor) == PSYS_OK);
+        CHECK(psys_system_add_plane(sys, &wall) == PSYS_OK);
+    }
+    free(at);
+    free(inv);
+    return sys;
+}
+
+/* psys_system_solver_create (the system's fast paths: fused stages, the
+ * chain, accelerations only, the state in the springs' order) against
+ * psys_solver_create on psys_system_ode (the plain ODE interface), both
+ * stepped by psys_system_advance: the same bits for every solver whose
+ * fast paths there are, on a cloth in rows and shuffled, with and without
+ * planes (collisions and contact in the steps). Over 4,096 springs, so the
+ * shuffled one gets an internal order. */
+static void system_solver_same_bits(void)
+{
+    static const char *const names[] = {"euler", "midpoint", "rk4", "symplectic-euler", "verlet"};
+    for (size_t k = 0; k < sizeof names / sizeof names[0]; k++)
+        for (int kind = 0; kind < 4; kind++) {
+            const bool shuffled = kind & 1, planes = kind >= 2;
+            psys_system *a = cloth(48, 36, shuffled, planes), *b = cloth(48, 36, shuffled, planes);
+            psys_solver *sa = make_solver(names[k], a);
+            psys_ode ob = psys_system_ode(b);
+            psys_solver *sb = make_ode_solver(names[k], &ob);
+            /* the fast side holds its state in the springs' order where shuffled, the plain side never */
+            CHECK(psys__state_order_begin(a, sa) == (shuffled && !planes));
+            psys__state_order_end(a);
+            CHECK(!psys__state_order_begin(b, sb));
+            psys__state_order_end(b);
+            for (int step = 0; step < 40; step++) {
+                double ha = 0, hb = 0;
+                CHECK(psys_system_advance(a, sa, 2e-4, &ha) == PSYS_OK);
+                CHECK(psys_system_advance(b, sb, 2e-4, &hb) == PSYS_OK);
+                CHECK(ha == hb);
+            }
+            const size_t nd = 3 * psys_system_count(a);
+            const bool same = memcmp(psys_system_positions(a), psys_system_positions(b), nd * sizeof(double)) == 0 &&
+                              memcmp(psys_system_velocities(a), psys_system_velocities(b), nd * sizeof(double)) == 0;
+            if (!same)
+                fprintf(stderr, "%s, cloth kind %d: the system's solver and the plain one differ\n", names[k], kind);
+            CHECK(same);
+            CHECK(psys_system_time(a) == psys_system_time(b));
+            /* the run did something: the cloth moved */
+            CHECK(psys_system_velocities(a)[3 * 600 + 2] != 0.0);
             psys_solver_destroy(sa);
             psys_solver_destroy(sb);
             psys_system_destroy(a);
@@ -1048,6 +1148,7 @@ static const check_case cases[] = {
     {"nonfinite_index_threads", nonfinite_index_threads},
     {"nonfinite_kinds", nonfinite_kinds},
     {"verlet_fast_paths", verlet_fast_paths},
+    {"system_solver_same_bits", system_solver_same_bits},
     {"symplectic_needs_second_order", symplectic_needs_second_order},
     {"custom_ode_decay", custom_ode_decay},
     {"custom_ode_symplectic", custom_ode_symplectic},

@@ -13,6 +13,8 @@
  * case's floor: the bytes that must move per particle-step over it. */
 #include "cli.h"
 
+#include "bench.h" /* src/: psys__system_timing_settled */
+
 #include <ctype.h>
 #include <math.h>
 #include <stdint.h>
@@ -287,23 +289,23 @@ static int bench_system(const char *name, psys_system *sys, const char *integrat
         cli_error("bench: %s: out of memory building the system", name);
         return EXIT_RUN_FAILED;
     }
-    psys_ode ode = psys_system_ode(sys);
     psys_error err;
     psys_solver *solver = NULL;
     int rc = EXIT_OK;
-    if (psys_system_set_threads(sys, o->threads) != PSYS_OK || !(solver = psys_solver_create(integrator, &ode, &err))) {
+    if (psys_system_set_threads(sys, o->threads) != PSYS_OK ||
+        !(solver = psys_system_solver_create(sys, integrator, &err))) {
         cli_error("bench: %s: %s", name, solver ? psys_system_last_error(sys) : err.message);
         psys_system_destroy(sys);
         return EXIT_RUN_FAILED;
     }
     /* One untimed step builds the spring plan and the pair lists, and
-     * more until the library's timed choices are made (psys.h:
-     * psys_system_timing_settled); then calibrate the batch so one
+     * more until the library's timed choices are made (src/bench.h:
+     * psys__system_timing_settled); then calibrate the batch so one
      * repetition takes about `seconds`. */
     do {
         if (psys_system_advance(sys, solver, dt, NULL) != PSYS_OK)
             goto failed;
-    } while (!psys_system_timing_settled(sys));
+    } while (!psys__system_timing_settled(sys));
     long long batch = o->steps > 0 ? o->steps : 1;
     while (o->steps <= 0) {
         double t0 = now_seconds();

@@ -54,9 +54,8 @@ int vw_model_reset_solver(vw_model *m)
     psys_solver_destroy(m->solver);
     m->solver = NULL;
     psys_settings *set = psys_scene_settings(m->scene);
-    psys_ode ode = psys_system_ode(m->sys);
     psys_error err;
-    m->solver = psys_solver_create(set->integrator, &ode, &err);
+    m->solver = psys_system_solver_create(m->sys, set->integrator, &err);
     if (!m->solver) {
         say(m, "%s", err.message);
         return -1;

@@ -22,7 +22,7 @@ extern "C" {
 #endif
 
 /** Library version as "MAJOR.MINOR.PATCH". */
-#define PSYS_VERSION_STRING "0.1.0"
+#define PSYS_VERSION_STRING "0.2.0"
 
 /** Result of every fallible call. */
 typedef enum psys_status {
@@ -63,36 +63,6 @@ bool psys_fpu_flushes_subnormals(void);
 
 struct psys_jacobian;
 
-/** Per-component work that an explicit Runge–Kutta solver whose stage i uses
- *  only stage i−1 (euler, midpoint, rk4) does with the derivative k of a
- *  stage: psys_ode.derivative_stage applies it to each component j of k as
- *  it computes it, instead of storing k (one sweep over memory, not two).
- *  acc and next never overlap each other, base or the stage's state y. */
-typedef struct psys_stage_pass {
-    double h;            /**< step */
-    const double *base;  /**< y0, the state at the start of the step */
-    double *acc;         /**< weighted sum of the stages, NULL when this stage has weight 0 */
-    double w;            /**< this stage's weight */
-    /** acc[j] = 0: 0 + w k; 1: acc[j] + w k; 2: base[j] + h (w k);
-     *  3: base[j] + h (0 + w k); 4: base[j] + h (acc[j] + w k) */
-    int acc_op;
-    double *next;        /**< next stage's state base[j] + h (a k), NULL after the last stage */
-    double a;            /**< the next stage's coefficient of this one */
-    /** Optional (NULL: not asked), on the pass that completes acc: the ODE
-     *  may set *finite to 1 when every component it wrote to acc is finite
-     *  and project would change none of them (the solver then skips its own
-     *  pass over the result), or to 0; left as it was when it does not look. */
-    int *finite;
-    /** Optional (NULL: not offered), only with derivative_chain_current, on
-     *  its last pass: the ODE may write the step's result into its current
-     *  state itself and the step's start into acc instead (the two swapped),
-     *  setting *in_place to 1, and only when project would change none of
-     *  the result. The solver then keeps the state as the step's result, or
-     *  puts acc back (set_state) when it refuses the result; no copy of the
-     *  result into the state. */
-    int *in_place;
-} psys_stage_pass;
-
 /** A first-order ODE y' = f(t, y) of fixed size, seen by solvers. */
 typedef struct psys_ode {
     size_t size;  /**< length of the state vector */
@@ -111,7 +81,7 @@ typedef struct psys_ode {
     /** Evaluate ydot = f(t, y); must not change the current state. */
     psys_status (*derivative)(void *ctx, double t, const double *y, double *ydot);
     /** Optional (may be NULL): overwrite prescribed components of y with
-     *  their values at time t (controlled particles, ERRATA). Solvers call it
+     *  their values at time t (controlled particles). Solvers call it
      *  on every stage state before evaluating the derivative. */
     void (*project)(void *ctx, double t, double *y);
     /** Optional, for implicit solvers of second-order systems (NULL if not
@@ -127,52 +97,6 @@ typedef struct psys_ode {
      *  this piece's partial sums, by their totals over all pieces. Adaptive
      *  solvers pass {sum of squared scaled errors, components} through it. */
     void (*reduce_sum)(void *ctx, double *values, int count);
-    /** Optional (may be NULL): evaluate the derivative at (t, y) and apply
-     *  pass to it, component by component, without storing it; the same
-     *  results as derivative followed by pass. PSYS_ERR_UNSUPPORTED when it
-     *  cannot (the solver then does the two itself); with y and pass NULL it
-     *  only answers whether it can (PSYS_OK) or not, changing nothing. It
-     *  belongs with ctx and derivative: an ODE that wraps another (its own
-     *  ctx or derivative) must set it to NULL or to its own. */
-    psys_status (*derivative_stage)(void *ctx, double t, const double *y, const psys_stage_pass *pass);
-    /** Optional (may be NULL), for second-order systems: derivative with only
-     *  its second half required, the accelerations ydot[npos..size);
-     *  ydot[0..npos), which derivative sets to the velocities, may be left as
-     *  it was. symplectic-euler and verlet call it instead of derivative. Like
-     *  derivative_stage it belongs with ctx and derivative: an ODE that wraps
-     *  another must set it to NULL or to its own. */
-    psys_status (*acceleration)(void *ctx, double t, const double *y, double *ydot);
-    /** Optional (may be NULL, taken as false): true when the accelerations do
-     *  not depend on the velocities (no damping, drag, contact or other
-     *  velocity-dependent force); asked at every step, so the answer may
-     *  change as forces are added. verlet then evaluates its second stage at
-     *  the half-step velocities instead of forming a state with predicted
-     *  ones: the same results, one state vector fewer to write. Belongs with
-     *  ctx and derivative, as above. */
-    bool (*velocity_free)(void *ctx);
-    /** Optional (may be NULL): every stage of a step of an explicit
-     *  Runge–Kutta solver whose stage i uses only stage i−1, at once. Stage i
-     *  is evaluated at time t + c[i]·pass[i].h on state y_i (y_0 = y0, then
-     *  y_{i+1} = pass[i].next, which stage i writes) and pass[i] applied to
-     *  it, as derivative_stage does; the same results as project and
-     *  derivative_stage stage after stage, however the stages' work is
-     *  interleaved (a system whose forces are local may sweep all stages
-     *  through memory together). PSYS_ERR_UNSUPPORTED when it cannot (the
-     *  solver then goes stage by stage); with y0 NULL it only answers whether
-     *  it can for that many stages, changing nothing. Belongs with ctx and
-     *  derivative, as derivative_stage does. */
-    psys_status (*derivative_chain)(void *ctx, double t, const double *y0, int stages, const double *c,
-                                    const psys_stage_pass *pass);
-    /** Optional (may be NULL): derivative_chain from the current state
-     *  itself (y0 = what get_state would copy; every pass's base is NULL and
-     *  stands for it too), read where it is and left as it is, so the
-     *  solver need not copy it. PSYS_ERR_UNSUPPORTED, with nothing done,
-     *  when it cannot (the solver then copies the state and calls
-     *  derivative_chain). Called only after derivative_chain answered that
-     *  it can take the step. Belongs with ctx and derivative, as
-     *  derivative_chain does. */
-    psys_status (*derivative_chain_current)(void *ctx, double t, int stages, const double *c,
-                                            const psys_stage_pass *pass);
 } psys_ode;
 
 /* ------------------------------------------------------------------ */
@@ -532,13 +456,18 @@ psys_status psys_system_plane(const psys_system *sys, size_t k, psys_plane_def *
 
 /** Advance the system by one solver step of at most h_max with collision
  *  handling against the planes; *h_taken gets the step length. The solver
- *  must have been created for this system's ODE; its thread count is set to
+ *  must step this system's ODE (psys_system_solver_create, or
+ *  psys_solver_create on psys_system_ode(sys)); its thread count is set to
  *  the system's (psys_solver_set_threads). */
 psys_status psys_system_advance(psys_system *sys, psys_solver *solver, double h_max, double *h_taken);
 
 /** The ODE view of the system: y = [x (n*dim) | v (n*dim)]. The psys_ode
  *  refers to sys, which must outlive it; adding particles invalidates it. */
 psys_ode psys_system_ode(psys_system *sys);
+/** A solver by name for sys's ODE with the system's fast paths (the same
+ *  bits as psys_solver_create on psys_system_ode(sys), often faster);
+ *  create it after the last particle is added. */
+psys_solver *psys_system_solver_create(psys_system *sys, const char *name, psys_error *err);
 /** Sum of all forces at the current state into f (n*dim, overwritten). */
 psys_status psys_system_compute_forces(psys_system *sys, double *f);
 /** Kinetic energy of free particles. */
@@ -742,8 +671,6 @@ typedef struct psys_pair_stats {
     size_t nodes;        /**< barnes-hut: tree nodes at the last build */
     size_t fallbacks;    /**< evaluations done by the direct method because storage could not grow */
     size_t partial;      /**< grid: force evaluations that recomputed only the particles near moved ones */
-    size_t grouped;      /**< grid: force evaluations whose rows ran four or eight at a time (the AVX2 /
-                              AVX-512 loops; 0 where they do not run) */
     size_t partial_rows; /**< grid: particles' forces recomputed by the partial evaluations, in all */
 } psys_pair_stats;
 /** Counters of pair force object i. */
@@ -779,12 +706,6 @@ psys_status psys_system_set_threads(psys_system *sys, int threads);
 int psys_system_threads(const psys_system *sys);
 /** Threads large evaluations use (1 in a build without OpenMP). */
 int psys_system_effective_threads(const psys_system *sys);
-/** Whether the steps timed to choose between equivalent code paths are
- *  over: for rk4 and midpoint on springs that reach far, the first six
- *  steps after the springs, particle count or threads change time every
- *  stage in one sweep against stage by stage (docs/api.md). The results are
- *  the same bits either way; benchmarks step until this holds. */
-bool psys_system_timing_settled(const psys_system *sys);
 
 /* ------------------------------------------------------------------ */
 /* Scenes (JSON, DESIGN §2)                                            */
