@@ -313,7 +313,9 @@ typedef struct psys_force_class {
      *  consecutive particles with masses mass[j], velocities V[c][j] and
      *  forces F[c][j] in component rows (c < dim), the same bits as apply.
      *  first: F is not cleared yet and gets 0.0 + this force's term (the bits
-     *  of clearing it and adding), one pass over F fewer. */
+     *  of clearing it and adding), one pass over F fewer. Only for forces of
+     *  the mass and velocity alone; called from several threads at once on
+     *  disjoint rows. */
     void (*apply_rows)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
                        double *const *F, bool first);
     /** Optional: a copy of data (freed with destroy) for another system, or
