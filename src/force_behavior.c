@@ -508,10 +508,24 @@ static void behavior_jacobian(void *data, const psys_force_eval *e, psys_jacobia
         }
 }
 
-const psys_force_class psys_behavior_class = {"behavior", behavior_apply, behavior_energy, behavior_jacobian,
-                                              free};
-const psys_force_class psys_behavior_user_class = {"user-behavior", behavior_apply, behavior_energy,
-                                                   behavior_jacobian, free};
+static const struct psys__force_terms behavior_terms = {PSYS__TERMS_BEHAVIOR};
+/* One term over the behaviour's particles (damped: not velocity-free). */
+const psys_force_class psys_behavior_class = {.name = "behavior",
+                                              .apply = behavior_apply,
+                                              .energy = behavior_energy,
+                                              .jacobian = behavior_jacobian,
+                                              .destroy = free,
+                                              .traits = PSYS_FORCE_BONDED,
+                                              .clone = psys__behavior_clone,
+                                              .terms = &behavior_terms};
+const psys_force_class psys_behavior_user_class = {.name = "user-behavior",
+                                                   .apply = behavior_apply,
+                                                   .energy = behavior_energy,
+                                                   .jacobian = behavior_jacobian,
+                                                   .destroy = free,
+                                                   .traits = PSYS_FORCE_BONDED,
+                                                   .clone = psys__behavior_clone,
+                                                   .terms = &behavior_terms};
 
 psys_status psys_system_add_behavior(psys_system *sys, const psys_behavior_def *def)
 {

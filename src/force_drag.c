@@ -30,9 +30,27 @@ static void drag_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J
         psys_jacobian_add(J, i, i, NULL, blk);
 }
 
-double psys__drag_kd(const void *data) { return ((const drag *)data)->kd; }
+/* The row kernel, defined below. */
+SPRING_CLONES
+static void drag_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                      double *const *F, bool first);
 
-const psys_force_class psys_drag_class = {"drag", drag_apply, NULL, drag_jacobian, free};
+static void *drag_clone(const void *data)
+{
+    drag *c = malloc(sizeof *c);
+    if (c)
+        *c = *(const drag *)data;
+    return c;
+}
+
+/* -kd v: each particle's own velocity only. */
+const psys_force_class psys_drag_class = {.name = "drag",
+                                          .apply = drag_apply,
+                                          .jacobian = drag_jacobian,
+                                          .destroy = free,
+                                          .traits = PSYS_FORCE_PER_PARTICLE,
+                                          .apply_rows = drag_rows,
+                                          .clone = drag_clone};
 
 psys_status psys_system_add_drag(psys_system *sys, double kd)
 {
@@ -92,4 +110,4 @@ static void drag_rows(const void *data, int dim, size_t count, const double *mas
     }
 }
 
-const psys__force_io psys__drag_io = {.type = "drag", .cls = &psys_drag_class, .parse = drag_parse, .save = drag_save, .apply_rows = drag_rows};
+const psys__force_io psys__drag_io = {.type = "drag", .cls = &psys_drag_class, .parse = drag_parse, .save = drag_save};

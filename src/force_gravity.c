@@ -57,9 +57,28 @@ static void gravity_jacobian(void *data, const psys_force_eval *e, psys_jacobian
     (void)J;
 }
 
-const double *psys__gravity_g(const void *data) { return ((const gravity *)data)->g; }
+/* The row kernel, defined below. */
+SPRING_CLONES
+static void gravity_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                         double *const *F, bool first);
 
-const psys_force_class psys_gravity_class = {"gravity", gravity_apply, gravity_energy, gravity_jacobian, free};
+static void *gravity_clone(const void *data)
+{
+    gravity *c = malloc(sizeof *c);
+    if (c)
+        *c = *(const gravity *)data;
+    return c;
+}
+
+/* m g reads neither velocities nor other particles. */
+const psys_force_class psys_gravity_class = {.name = "gravity",
+                                             .apply = gravity_apply,
+                                             .energy = gravity_energy,
+                                             .jacobian = gravity_jacobian,
+                                             .destroy = free,
+                                             .traits = PSYS_FORCE_VELOCITY_FREE | PSYS_FORCE_PER_PARTICLE,
+                                             .apply_rows = gravity_rows,
+                                             .clone = gravity_clone};
 
 psys_status psys_system_add_gravity(psys_system *sys, const double *g)
 {
@@ -119,4 +138,4 @@ static void gravity_rows(const void *data, int dim, size_t count, const double *
     }
 }
 
-const psys__force_io psys__gravity_io = {.type = "gravity", .cls = &psys_gravity_class, .parse = gravity_parse, .save = gravity_save, .apply_rows = gravity_rows};
+const psys__force_io psys__gravity_io = {.type = "gravity", .cls = &psys_gravity_class, .parse = gravity_parse, .save = gravity_save};

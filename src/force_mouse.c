@@ -71,8 +71,13 @@ static void mouse_jacobian(void *data, const psys_force_eval *e, psys_jacobian *
     psys_jacobian_add(J, m->particle, m->particle, kx, kv);
 }
 
-const psys_force_class psys_mouse_spring_class = {"mouse-spring", mouse_apply, mouse_energy, mouse_jacobian,
-                                                  mouse_destroy};
+/* A one-particle term (damped: not velocity-free); MPI ranks do not split it. */
+const psys_force_class psys_mouse_spring_class = {.name = "mouse-spring",
+                                                  .apply = mouse_apply,
+                                                  .energy = mouse_energy,
+                                                  .jacobian = mouse_jacobian,
+                                                  .destroy = mouse_destroy,
+                                                  .traits = PSYS_FORCE_BONDED};
 
 psys_status psys_system_add_mouse_spring(psys_system *sys, size_t i, const double *target, double ks, double kd,
                                          size_t *handle)

@@ -799,8 +799,19 @@ static void pair_jacobian(void *data, const psys_force_eval *e, psys_jacobian *J
     }
 }
 
-const psys_force_class psys_pair_class = {"pair", pair_apply, pair_energy, pair_jacobian, pair_destroy};
-const psys_force_class psys_pair_user_class = {"user-pair", pair_apply, pair_energy, pair_jacobian, pair_destroy};
+/* Functions of the distances alone, user laws included. */
+const psys_force_class psys_pair_class = {.name = "pair",
+                                          .apply = pair_apply,
+                                          .energy = pair_energy,
+                                          .jacobian = pair_jacobian,
+                                          .destroy = pair_destroy,
+                                          .traits = PSYS_FORCE_VELOCITY_FREE};
+const psys_force_class psys_pair_user_class = {.name = "user-pair",
+                                               .apply = pair_apply,
+                                               .energy = pair_energy,
+                                               .jacobian = pair_jacobian,
+                                               .destroy = pair_destroy,
+                                               .traits = PSYS_FORCE_VELOCITY_FREE};
 
 /* ---- C API ---- */
 

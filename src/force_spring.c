@@ -1064,8 +1064,35 @@ double psys_system_spring_rest_length(const psys_system *sys, size_t k, double t
     return k < psys_system_spring_count(sys) ? psys__springs_rest_at(sys->springs, k, t) : NAN;
 }
 
-const psys_force_class psys_spring_class = {"spring", springs_apply, springs_energy, springs_jacobian,
-                                            springs_destroy};
+/* A copy of spring set src (muscles included), without its plan. */
+static void *springs_clone(const void *src)
+{
+    void *c = psys__springs_create(NULL);
+    if (!c)
+        return NULL;
+    for (size_t k = 0; k < psys__springs_count(src); k++) {
+        size_t a, b;
+        double ks, kd, rest, amp, om, ph;
+        psys__springs_get(src, k, &a, &b, &ks, &kd, &rest);
+        if (psys__springs_add(c, a, b, ks, kd, rest) != PSYS_OK
+            || (psys__springs_muscle(src, k, &amp, &om, &ph) && psys__springs_set_muscle(c, k, amp, om, ph) != PSYS_OK)) {
+            springs_destroy(c);
+            return NULL;
+        }
+    }
+    return c;
+}
+
+static const struct psys__force_terms spring_terms = {PSYS__TERMS_SPRINGS};
+/* Two-particle terms (damped: not velocity-free). */
+const psys_force_class psys_spring_class = {.name = "spring",
+                                            .apply = springs_apply,
+                                            .energy = springs_energy,
+                                            .jacobian = springs_jacobian,
+                                            .destroy = springs_destroy,
+                                            .traits = PSYS_FORCE_BONDED,
+                                            .clone = springs_clone,
+                                            .terms = &spring_terms};
 
 psys_status psys__parse_muscle(psys__parse *p, const cJSON *obj, const char *path, bool with_step,
                                bool *present, double out[4])

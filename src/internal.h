@@ -237,10 +237,6 @@ struct psys_jacobian {
     bool definite; /* see psys_jacobian_wants_definite */
 };
 
-/** Gravity object's acceleration (force_gravity.c). */
-const double *psys__gravity_g(const void *data);
-/** Drag object's coefficient (force_drag.c). */
-double psys__drag_kd(const void *data);
 /** A pair force's particles were replaced (not just moved): rebuild its lists
  *  and forget its cached forces at the next evaluation (force_pair.c). */
 void psys__pair_invalidate(void *data);
@@ -343,6 +339,12 @@ psys__ode_fast psys__system_ode_fast(psys_system *s);
  *  2k + 1 for its higher one (+F); seq[e] (2·count) is entry e's place in
  *  the loop's whole sequence of additions. */
 psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent, uint64_t *seq);
+/** How MPI ranks read a bonded class's terms (psys_force_class.terms,
+ *  mpi_bonded.c): a spring set's springs, or one behaviour. */
+typedef enum psys__terms_kind { PSYS__TERMS_SPRINGS, PSYS__TERMS_BEHAVIOR } psys__terms_kind;
+struct psys__force_terms {
+    psys__terms_kind kind;
+};
 /** Copy of behaviour force data (force_behavior.c; free() frees it). */
 void *psys__behavior_clone(const void *data);
 /** A behaviour's particles (count, then each index). */
@@ -377,13 +379,6 @@ typedef struct psys__force_io {
     psys_status (*parse)(psys__parse *p, const struct cJSON *obj, const char *path);
     /** Append JSON objects describing force object data to the array arr. */
     psys_status (*save)(const psys_system *sys, const void *data, struct cJSON *arr);
-    /** Optional, for forces on each particle alone: cls->apply's operations
-     *  for `count` consecutive particles with masses mass[j], velocities
-     *  V[c][j] and forces F[c][j] in component rows (the fused derivative).
-     *  first: F is not cleared yet, and gets 0.0 + this force's term (the
-     *  bits of clearing it and adding), one pass over F fewer. */
-    void (*apply_rows)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
-                       double *const *F, bool first);
 } psys__force_io;
 
 extern const psys__force_io psys__gravity_io;

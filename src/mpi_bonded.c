@@ -30,10 +30,9 @@
 #define BOND_TAG 7302
 #define MAXQ (PSYS_BEHAVIOR_MAX_PARTICLES * 3)
 
-enum { BOND_SPRINGS, BOND_BEHAVIOR };
-
 typedef struct bond_obj {
-    int kind;
+    const psys_force_class *cls; /* the whole system's object's class */
+    psys__terms_kind kind;
     size_t g_index; /* its index among the whole system's force objects */
     void *data;     /* this rank's copy: a spring set or a behaviour */
     size_t term0;   /* its first term */
@@ -106,19 +105,16 @@ typedef struct bond_force {
 
 bool psys__bonds_takes(const psys_force_class *c)
 {
-    return c == &psys_spring_class || c == &psys_behavior_class || c == &psys_behavior_user_class;
+    return (c->traits & PSYS_FORCE_BONDED) && c->terms && c->clone && c->destroy;
 }
 
 void psys__bonds_free(psys__bonds *B)
 {
     if (!B)
         return;
-    for (size_t o = 0; o < B->nobj; o++) {
-        if (B->obj[o].kind == BOND_SPRINGS && B->obj[o].data)
-            psys_spring_class.destroy(B->obj[o].data);
-        else
-            free(B->obj[o].data);
-    }
+    for (size_t o = 0; o < B->nobj; o++)
+        if (B->obj[o].data)
+            B->obj[o].cls->destroy(B->obj[o].data);
     free(B->obj);
     free(B->end0);
     free(B->ends);
@@ -163,25 +159,6 @@ void psys__bonds_free(psys__bonds *B)
     free(B);
 }
 
-/* A copy of g's spring set k (muscles included). */
-static void *copy_springs(const void *src)
-{
-    void *c = psys__springs_create(NULL);
-    if (!c)
-        return NULL;
-    for (size_t k = 0; k < psys__springs_count(src); k++) {
-        size_t a, b;
-        double ks, kd, rest, amp, om, ph;
-        psys__springs_get(src, k, &a, &b, &ks, &kd, &rest);
-        if (psys__springs_add(c, a, b, ks, kd, rest) != PSYS_OK
-            || (psys__springs_muscle(src, k, &amp, &om, &ph) && psys__springs_set_muscle(c, k, amp, om, ph) != PSYS_OK)) {
-            psys_spring_class.destroy(c);
-            return NULL;
-        }
-    }
-    return c;
-}
-
 /* The terms of every bonded object, and each particle's slots in the
  * serial order (object by object, in each as the serial loop adds them). */
 static psys_status build_tables(psys__bonds *B, const psys_system *g)
@@ -194,10 +171,11 @@ static psys_status build_tables(psys__bonds *B, const psys_system *g)
         bond_obj *o = &B->obj[oi];
         o->g_index = k;
         o->term0 = t;
-        if (c == &psys_spring_class) {
-            o->kind = BOND_SPRINGS;
-            if (!(o->data = copy_springs(g->forces[k].data)))
-                return PSYS_ERR_NOMEM;
+        o->cls = c;
+        o->kind = c->terms->kind;
+        if (!(o->data = c->clone(g->forces[k].data)))
+            return PSYS_ERR_NOMEM;
+        if (o->kind == PSYS__TERMS_SPRINGS) {
             for (size_t q = 0; q < psys__springs_count(o->data); q++, t++) {
                 size_t a, b;
                 psys__springs_get(o->data, q, &a, &b, NULL, NULL, NULL);
@@ -210,9 +188,6 @@ static psys_status build_tables(psys__bonds *B, const psys_system *g)
                 sl += 2;
             }
         } else {
-            o->kind = BOND_BEHAVIOR;
-            if (!(o->data = psys__behavior_clone(g->forces[k].data)))
-                return PSYS_ERR_NOMEM;
             int cnt = psys__behavior_count(o->data), lead = 0;
             B->end0[t] = sl;
             for (int i = 0; i < cnt; i++) {
@@ -244,7 +219,7 @@ static psys_status build_tables(psys__bonds *B, const psys_system *g)
     psys_status st = PSYS_OK;
     for (size_t o = 0; o < B->nobj && st == PSYS_OK; o++) {
         const bond_obj *ob = &B->obj[o];
-        if (ob->kind == BOND_BEHAVIOR) {
+        if (ob->kind == PSYS__TERMS_BEHAVIOR) {
             const size_t t0 = ob->term0;
             for (size_t s = B->end0[t0]; s < B->end0[t0 + 1]; s++) {
                 B->pslot[fill[B->ends[s]]++] = s;
@@ -286,7 +261,7 @@ psys_status psys__bonds_create(const psys_system *g, psys__bonds **out)
         if (!psys__bonds_takes(c))
             continue;
         nobj++;
-        if (c == &psys_spring_class) {
+        if (c->terms->kind == PSYS__TERMS_SPRINGS) {
             size_t S = psys__springs_count(g->forces[k].data);
             nterm += S;
             nslot += 2 * S;
@@ -352,7 +327,7 @@ static void bond_apply(void *data, const psys_force_eval *e, double *f)
         bond_apply_d(bf->B, bf->obj, f, 3);
 }
 
-static const psys_force_class bond_class = {"bonded-mpi", bond_apply, NULL, NULL, free};
+static const psys_force_class bond_class = {.name = "bonded-mpi", .apply = bond_apply, .destroy = free};
 
 psys_status psys__bonds_add_force(psys__bonds *B, psys_system *local, size_t k)
 {
@@ -521,7 +496,7 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
     for (int group = 0; group < 3; group++)
         for (size_t u = 0; u < nlt; u++) {
             const size_t t = B->lterm[u];
-            const bool spring = B->obj[B->term_obj[t]].kind == BOND_SPRINGS;
+            const bool spring = B->obj[B->term_obj[t]].kind == PSYS__TERMS_SPRINGS;
             if (group != (!B->lcomp[u] ? 2 : spring ? 0 : 1))
                 continue;
             B->lslot0[u] = ls;
@@ -537,7 +512,7 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
     for (size_t u = 0; u < nlt; u++)
         if (B->lcomp[u]) {
             const bond_obj *o = &B->obj[B->term_obj[B->lterm[u]]];
-            if (o->kind == BOND_BEHAVIOR)
+            if (o->kind == PSYS__TERMS_BEHAVIOR)
                 cb++;
             else {
                 cs++;
@@ -571,7 +546,7 @@ int psys__bonds_localize(psys__bonds *B, size_t nloc, const size_t *gid, const u
             continue;
         const size_t t = B->lterm[u], s0 = B->lslot0[u];
         const bond_obj *o = &B->obj[B->term_obj[t]];
-        if (o->kind == BOND_BEHAVIOR) {
+        if (o->kind == PSYS__TERMS_BEHAVIOR) {
             B->bh_u[B->nbh++] = u;
             continue;
         }

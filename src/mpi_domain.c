@@ -982,6 +982,13 @@ static int by_particle(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* Whether every rank can apply its own copy of force class c to the
+ * particles it owns. */
+static bool per_particle(const psys_force_class *c)
+{
+    return (c->traits & PSYS_FORCE_PER_PARTICLE) && c->clone && c->destroy;
+}
+
 /* Why the scene cannot be decomposed (NULL: it can); range and skin of its pair forces. */
 static const char *unsupported(const psys_system *g, const char *integrator, double *delta, double *skin)
 {
@@ -990,12 +997,14 @@ static const char *unsupported(const psys_system *g, const char *integrator, dou
     double range = -1, sk = 0;
     for (size_t k = 0; k < g->nforces; k++) {
         const psys_force_class *c = g->forces[k].cls;
-        if (c == &psys_gravity_class || c == &psys_drag_class || psys__bonds_takes(c))
+        if (per_particle(c) || psys__bonds_takes(c))
             continue;
+        /* pair forces: their ranges set the ghosts' */
         if (c != &psys_pair_class)
             return c == &psys_mouse_spring_class ? "the scene has mouse springs"
-                                                 : "the scene has a force type other than pair, spring, behaviour, "
-                                                   "gravity and drag";
+                                                 : "the scene has a force type other than pair, bonded terms the "
+                                                   "ranks can split (spring, behaviour) and per-particle forces the "
+                                                   "ranks can copy (gravity, drag)";
         psys_pair_def def;
         psys_system_pair(g, k, &def);
         double r = def.law == PSYS_PAIR_LENNARD_JONES ? def.cutoff
@@ -1101,10 +1110,9 @@ psys_status psys__domain_create(psys_system *g, const char *integrator, double t
         for (size_t k = 0; k < g->nforces && ok; k++) {
             const psys_force_class *c = g->forces[k].cls;
             psys_status st;
-            if (c == &psys_gravity_class) {
-                st = psys_system_add_gravity(s, psys__gravity_g(g->forces[k].data));
-            } else if (c == &psys_drag_class) {
-                st = psys_system_add_drag(s, psys__drag_kd(g->forces[k].data));
+            if (per_particle(c)) {
+                void *copy = c->clone(g->forces[k].data);
+                st = copy ? psys_system_add_force(s, c, copy) : PSYS_ERR_NOMEM; /* frees copy on failure */
             } else if (psys__bonds_takes(c)) {
                 st = psys__bonds_add_force(D->bonds, s, k);
             } else {

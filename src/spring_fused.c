@@ -1,5 +1,5 @@
 /* The derivative [v | f/m] of a system whose forces are its springs and
- * per-particle forces (gravity, drag: psys__force_io.apply_rows), in one
+ * per-particle forces (PSYS_FORCE_PER_PARTICLE with apply_rows), in one
  * pass over memory instead of one per force object plus copies.
  *
  * The generic derivative clears f, lets each force object sweep it, copies
@@ -105,13 +105,11 @@ typedef struct fused {
     int npre, npost;
 } fused;
 
-/* The row kernel of force class cls, or NULL. */
+/* The row kernel of force class cls, or NULL: the fused path takes the
+ * per-particle forces that have one. */
 static rows_fn rows_of(const psys_force_class *cls)
 {
-    for (const psys__force_io *const *io = psys__force_types; *io; io++)
-        if ((*io)->cls == cls)
-            return (*io)->apply_rows;
-    return NULL;
+    return (cls->traits & PSYS_FORCE_PER_PARTICLE) ? cls->apply_rows : NULL;
 }
 
 /* The fused path runs whenever a system is eligible: it was not slower

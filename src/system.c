@@ -552,18 +552,17 @@ static psys_status ode_acceleration(void *ctx, double t, const double *y, double
     return derivative_into(ctx, t, y, ydot, false);
 }
 
-/* Whether no force reads the velocities (psys__ode_fast.velocity_free): only
- * pair forces (functions of the distances, user laws included) and uniform
- * gravity, and no planes (contact and friction) or controlled particles
- * (whose prescribed velocities the solver's projection writes). */
+/* Whether no force reads the velocities (psys__ode_fast.velocity_free):
+ * every force class says so (PSYS_FORCE_VELOCITY_FREE), and no planes
+ * (contact and friction) or controlled particles (whose prescribed
+ * velocities the solver's projection writes). */
 static bool ode_velocity_free(void *ctx)
 {
     const psys_system *s = ctx;
     if (s->nplanes || s->nctrl)
         return false;
     for (size_t i = 0; i < s->nforces; i++) {
-        const psys_force_class *c = s->forces[i].cls;
-        if (c != &psys_pair_class && c != &psys_pair_user_class && c != &psys_gravity_class)
+        if (!(s->forces[i].cls->traits & PSYS_FORCE_VELOCITY_FREE))
             return false;
     }
     return true;

@@ -332,7 +332,7 @@ static void pull_destroy(void *data)
     free(data);
 }
 
-static const psys_force_class pull_class = {"pull", pull_apply, pull_energy, NULL, pull_destroy};
+static const psys_force_class pull_class = {.name = "pull", .apply = pull_apply, .energy = pull_energy, .destroy = pull_destroy};
 
 /* A new force type is one class: it adds into the accumulators, its energy
  * counts, and the system owns (and destroys) its data. */
@@ -359,7 +359,7 @@ static void custom_force_class(void)
     double J[16], Jv[16];
     CHECK(psys_system_dense_jacobian(sys, J, Jv) == PSYS_ERR_UNSUPPORTED);
     /* A class without apply is refused, and its data destroyed at once. */
-    static const psys_force_class broken = {"broken", NULL, NULL, NULL, pull_destroy};
+    static const psys_force_class broken = {.name = "broken", .destroy = pull_destroy};
     pull *other = malloc(sizeof *other);
     CHECK(psys_system_add_force(sys, &broken, other) == PSYS_ERR_INVALID);
     CHECK(pull_destroyed == 1);

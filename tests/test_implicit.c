@@ -395,7 +395,7 @@ static void nojac_apply(void *data, const psys_force_eval *e, double *f)
     for (size_t i = 0; i < e->n * (size_t)e->dim; i++)
         f[i] += -k * (e->x[i] - 0.25);
 }
-static const psys_force_class nojac_class = {"no-jacobian", nojac_apply, NULL, NULL, free};
+static const psys_force_class nojac_class = {.name = "no-jacobian", .apply = nojac_apply, .destroy = free};
 
 /* Forces without Jacobians are treated explicitly: with only such forces the
  * matrix is M, so implicit-euler's step is v1 = v0 + h f(x0)/m, x1 = x0 + h v1

@@ -6,8 +6,12 @@
  * particles over a grid of boxes (each owned once, balanced, fewer than all
  * held per rank; 4 ranks cut the cube 2×2×1), the
  * state gathered on rank 0 equals the serial run's bit for bit (verlet) or
- * to rounding (rk45), after particles have migrated. */
+ * to rounding (rk45), after particles have migrated. A force type written
+ * outside the library (tests/my_gravity.h) is decomposed when its traits
+ * say per-particle, and refused without them. */
 #include "psys/psys_mpi.h"
+
+#include "my_gravity.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -209,6 +213,51 @@ static void bonded_case(const char *path, const char *integrator, size_t min_red
     psys_scene_destroy(ds);
 }
 
+/* The cloth (path) with a user force of class cls added: with
+ * PSYS_FORCE_PER_PARTICLE and clone every rank applies its copy to its own
+ * particles, the same bits as the serial run; without traits the
+ * decomposition refuses the run and leaves it serial. */
+static void user_force_case(const char *path, const psys_force_class *cls)
+{
+    int rank, size;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    psys_error err;
+    psys_scene *ss, *ds;
+    if (!load_pair(path, "verlet", &ss, &ds))
+        return;
+    psys_system *ssys = psys_scene_system(ss), *dsys = psys_scene_system(ds);
+    const double g[3] = {0.25, -2.0, 0.125};
+    CHECK(my_gravity_add(ssys, cls, g) == PSYS_OK);
+    CHECK(my_gravity_add(dsys, cls, g) == PSYS_OK);
+    const size_t nd = (size_t)psys_system_dim(ssys) * psys_system_count(ssys);
+    psys_run *sr = psys_run_create(ss, &err), *dr = psys_run_create(ds, &err);
+    CHECK(sr && dr);
+    const bool takes = (cls->traits & PSYS_FORCE_PER_PARTICLE) && cls->clone;
+    psys_status st = psys_run_decompose(dr, MPI_COMM_WORLD, &err);
+    CHECK(st == (takes || size == 1 ? PSYS_OK : PSYS_ERR_UNSUPPORTED));
+    if (st != PSYS_OK)
+        CHECK(strstr(err.message, "force type") != NULL);
+    for (int k = 0; k < (st == PSYS_OK ? 20 : 3) && !psys_run_done(sr); k++) { /* refused: still runs */
+        CHECK(psys_run_step(sr, &err) == PSYS_OK);
+        CHECK(psys_run_step(dr, &err) == PSYS_OK);
+    }
+    CHECK(psys_run_gather(dr, &err) == PSYS_OK);
+    if (rank == 0 || st != PSYS_OK) {
+        CHECK(memcmp(psys_system_positions(ssys), psys_system_positions(dsys), nd * sizeof(double)) == 0);
+        CHECK(memcmp(psys_system_velocities(ssys), psys_system_velocities(dsys), nd * sizeof(double)) == 0);
+    }
+    if (takes && size > 1) {
+        size_t owned = 0;
+        psys_run_domain_counts(dr, &owned, NULL, NULL);
+        CHECK(owned < psys_system_count(ssys)); /* decomposed indeed */
+    }
+    psys_run_destroy(sr);
+    psys_run_destroy(dr);
+    psys_scene_destroy(ss);
+    psys_scene_destroy(ds);
+}
+
 /* A run the decomposition cannot split is refused and left alone. */
 static void domain_refused(void)
 {
@@ -280,6 +329,8 @@ int main(int argc, char **argv)
         bonded_case(argv[5], "rk4", 2);
         bonded_case(argv[6], "rk4", 2);
         bonded_case(argv[6], "verlet", 2);
+        user_force_case(argv[2], &my_gravity_class);
+        user_force_case(argv[2], &my_plain_class);
     }
     domain_refused();
     int fails = check_failures, all = 0;

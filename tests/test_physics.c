@@ -365,7 +365,7 @@ static void const_force_apply(void *data, const psys_force_eval *e, double *f)
             f[i * (size_t)e->dim + (size_t)k] += cf->f[k];
 }
 
-static const psys_force_class const_force_class = {"constant", const_force_apply, NULL, NULL, free};
+static const psys_force_class const_force_class = {.name = "constant", .apply = const_force_apply, .destroy = free};
 
 static void own_mass_acceleration(void)
 {

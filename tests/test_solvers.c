@@ -696,7 +696,7 @@ static void nan_force_apply(void *data, const psys_force_eval *e, double *f)
     f[nf->particle * (size_t)e->dim + (size_t)nf->axis] = NAN;
 }
 
-static const psys_force_class nan_force_class = {"nan", nan_force_apply, NULL, NULL, free};
+static const psys_force_class nan_force_class = {.name = "nan", .apply = nan_force_apply, .destroy = free};
 
 static void nonfinite_particle_force(void)
 {
@@ -760,7 +760,7 @@ static void late_nan_force_apply(void *data, const psys_force_eval *e, double *f
         f[nf->component] = NAN;
 }
 
-static const psys_force_class late_nan_force_class = {"late-nan", late_nan_force_apply, NULL, NULL, free};
+static const psys_force_class late_nan_force_class = {.name = "late-nan", .apply = late_nan_force_apply, .destroy = free};
 
 /* A NaN that first appears at the last evaluation of a step (velocity
  * Verlet's second one reaches only the velocities; symplectic Euler has

@@ -197,7 +197,30 @@ bool psys_jacobian_wants_definite(const psys_jacobian *J);
 void psys_jacobian_add(psys_jacobian *J, size_t i, size_t j,
                        const double *dfdx, const double *dfdv);
 
-/** Behaviour of one force type (Chipmunk-style class of function pointers). */
+/* Traits of a force class (psys_force_class.traits): promises about its
+ * forces that let the library take faster paths. 0 promises nothing and
+ * gets the generic paths, which are always correct. */
+/** No force of the class depends on the velocities (verlet then evaluates at
+ *  its half-step velocities instead of writing predicted ones). */
+#define PSYS_FORCE_VELOCITY_FREE 0x1u
+/** The force on each particle is one function of that particle's own mass,
+ *  position, velocity and the time, the same for every particle (the data
+ *  names no particle). With apply_rows the fused one-sweep derivative takes
+ *  the class; with clone a decomposed MPI run applies it on every rank to
+ *  the particles that rank owns. */
+#define PSYS_FORCE_PER_PARTICLE 0x2u
+/** The forces are a sum of terms, each over a few particles the data names
+ *  (springs, behaviours). A decomposed MPI run splits the terms over the
+ *  ranks where the library can read them (its own spring and behaviour
+ *  classes, which set terms); other bonded classes are refused there. */
+#define PSYS_FORCE_BONDED 0x4u
+
+/** Library-internal description of a bonded class's terms (for MPI ranks). */
+struct psys__force_terms;
+
+/** Behaviour of one force type (Chipmunk-style class of function pointers).
+ *  Members after destroy are optional: a class initialised without them
+ *  (zero) runs on the generic paths. */
 typedef struct psys_force_class {
     const char *name;  /**< type name, e.g. "spring" */
     /** Add this object's forces into f (n*dim accumulators). */
@@ -208,6 +231,22 @@ typedef struct psys_force_class {
     void (*jacobian)(void *data, const psys_force_eval *e, psys_jacobian *J);
     /** Free data (may be NULL). */
     void (*destroy)(void *data);
+    /** PSYS_FORCE_* flags: what the class's forces promise (0: nothing). */
+    unsigned traits;
+    /** Optional, with PSYS_FORCE_PER_PARTICLE: apply's operations for `count`
+     *  consecutive particles with masses mass[j], velocities V[c][j] and
+     *  forces F[c][j] in component rows (c < dim), the same bits as apply.
+     *  first: F is not cleared yet and gets 0.0 + this force's term (the bits
+     *  of clearing it and adding), one pass over F fewer. Only for forces of
+     *  the mass and velocity alone; called from several threads at once on
+     *  disjoint rows. */
+    void (*apply_rows)(const void *data, int dim, size_t count, const double *mass, const double *const *V,
+                       double *const *F, bool first);
+    /** Optional: a copy of data (freed with destroy) for another system, or
+     *  NULL when out of memory; MPI ranks apply their copies. */
+    void *(*clone)(const void *data);
+    /** Library-internal (its bonded classes); NULL in user classes. */
+    const struct psys__force_terms *terms;
 } psys_force_class;
 
 /** Create an empty system of dimension 2 or 3. */

@@ -38,7 +38,7 @@ size_t psys_system_comm_owned(const psys_system *sys);
  *  system is emptied (its particles and force objects freed); rank 0's is
  *  brought up to date only by psys_run_gather. Fails with
  *  PSYS_ERR_UNSUPPORTED, leaving the run as it was, for scenes with mouse
- *  springs or user force classes, or with the implicit-euler solver (springs and behaviours are computed by the rank
+ *  springs or user force classes (but per-particle ones with clone), or with the implicit-euler solver (springs and behaviours are computed by the rank
  *  owning their lowest-index particle, docs/mpi.md). A communicator of one rank leaves the
  *  run serial. Not combinable with psys_system_set_comm on the same system. */
 psys_status psys_run_decompose(psys_run *run, MPI_Comm comm, psys_error *err);
