@@ -5,7 +5,7 @@
  * accepted step (psys_system_advance; velocities unchanged) and pair forces
  * measure distances by the minimum image. Non-periodic axes of a box have
  * no effect (use planes for walls). */
-#include "internal.h"
+#include "io.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>

@@ -1,5 +1,5 @@
 /* The derivative [v | f/m] of a system whose forces are its springs and
- * per-particle forces (gravity, drag: psys__force_io.apply_rows), in one
+ * per-particle forces (gravity, drag: psys__gravity_rows, psys__drag_rows), in one
  * pass over memory instead of one per force object plus copies.
  *
  * The generic derivative clears f, lets each force object sweep it, copies
@@ -107,9 +107,10 @@ typedef struct fused {
 /* The row kernel of force class cls, or NULL. */
 static rows_fn rows_of(const psys_force_class *cls)
 {
-    for (const psys__force_io *const *io = psys__force_types; *io; io++)
-        if ((*io)->cls == cls)
-            return (*io)->apply_rows;
+    if (cls == &psys_gravity_class)
+        return psys__gravity_rows;
+    if (cls == &psys_drag_class)
+        return psys__drag_rows;
     return NULL;
 }
 

@@ -14,7 +14,7 @@
  *     all at rest (rest length = initial distance);
  *   - everything is validated, including the particle limit, before anything
  *     is allocated; a build that fails midway (out of memory) is undone. */
-#include "internal.h"
+#include "io.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
