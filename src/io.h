@@ -51,9 +51,9 @@ extern const psys__force_io psys__pair_io;
 /** All force types known to scenes, NULL-terminated (json_registry.c). */
 extern const psys__force_io *const psys__force_types[];
 
-/** Parse the scene's top-level "box" (box.c; scene_load.c calls it before particles and forces). */
+/** Parse the scene's top-level "box" (json_box.c; scene_load.c calls it before particles and forces). */
 psys_status psys__parse_box(psys__parse *p, const struct cJSON *root);
-/** Add the system's box, if any, to the scene object root; false on out of memory (box.c). */
+/** Add the system's box, if any, to the scene object root; false on out of memory (json_box.c). */
 bool psys__save_box(const psys_system *sys, struct cJSON *root);
 
 /* ---- helpers for force parsers (scene_load.c) ---- */
