@@ -56,7 +56,6 @@ void *psys__grow(void *p, size_t *cap, size_t want, size_t size);
 /** strdup that does not depend on POSIX. */
 char *psys__strdup(const char *s);
 
-
 /** One force object of a system. */
 typedef struct psys__force {
     const psys_force_class *cls;
@@ -380,6 +379,23 @@ void psys__system_release(psys_system *s);
  *  referred to by forces, controllers or anything else yet. */
 void psys__system_truncate(psys_system *s, size_t n);
 
+/** A structure builder's validation problem, for callers that report it
+ *  in their own terms (the scene loader names the JSON path and value). */
+typedef struct psys__problem {
+    const char *key; /* field at fault (JSON key); NULL = out of memory */
+    long index;      /* element of key (pin[index], axes[index], size[index]) or -1 */
+    char what[200];  /* "must be ..." */
+    char got[120];   /* the offending value as C sees it */
+} psys__problem;
+/** Build a chain (first index not returned), the problem into *pb on failure. */
+psys_status psys__chain_build(psys_system *sys, const psys_chain_def *def, psys__problem *pb);
+/** Build a cloth (a beam is a cloth without bend springs), as psys__chain_build. */
+psys_status psys__cloth_build(psys_system *sys, const psys_cloth_def *def, psys__problem *pb);
+/** Build a block, as psys__chain_build. */
+psys_status psys__block_build(psys_system *sys, const psys_block_def *def, psys__problem *pb);
+/** Build a wheel, as psys__chain_build. */
+psys_status psys__wheel_build(psys_system *sys, const psys_wheel_def *def, psys__problem *pb);
+
 /* ---- plane collisions across MPI ranks (collide.c, mpi_domain.c) ---- */
 /** What psys__advance needs when the system is one rank's part of a larger
  *  one: the particles it moves, their global indices, and two collectives. */
@@ -405,4 +421,5 @@ void psys__box_wrap(psys_system *s);
 /** Check pair force data (of class psys_pair_class or psys_pair_user_class)
  *  against box; on failure write a message into msg. */
 psys_status psys__pair_check_box(const void *pair, const psys__box *box, char *msg, size_t cap);
+
 #endif

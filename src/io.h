@@ -102,7 +102,7 @@ struct cJSON *psys__vec_json(const double *v, int dim);
  *  phase, phase_step} (phase_step only accepted when with_step; json_spring.c). */
 psys_status psys__parse_muscle(psys__parse *p, const struct cJSON *obj, const char *path, bool with_step,
                                bool *present, double out[4]);
-/** Parse one element of the scene's "structures" array (structures.c). */
+/** Parse one element of the scene's "structures" array (json_structures.c). */
 psys_status psys__parse_structure(psys__parse *p, const struct cJSON *obj, const char *path);
 
 #endif
