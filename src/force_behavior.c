@@ -14,9 +14,7 @@
  * PSYS_BEHAVIOR_MAX_PARTICLES and PSYS_BEHAVIOR_MAX_COMPONENTS. */
 #include "internal.h"
 
-#include <cjson/cJSON.h>
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -192,6 +190,18 @@ const char *psys_behavior_function_name(psys_behavior_function f)
 {
     const builtin *bi = find_builtin(f);
     return bi ? bi->name : NULL;
+}
+
+bool psys__behavior_builtin(size_t i, psys_behavior_function *f, const char **name, int *nparticles,
+                            const char *const **keys)
+{
+    if (i >= NBUILTINS)
+        return false;
+    if (f) *f = builtins[i].f;
+    if (name) *name = builtins[i].name;
+    if (nparticles) *nparticles = builtins[i].nparticles;
+    if (keys) *keys = builtins[i].keys;
+    return true;
 }
 
 psys_status psys_behavior_function_from_name(const char *name, psys_behavior_function *f)
@@ -468,6 +478,7 @@ void psys__behavior_forces(const void *data, const double *x, const double *v, d
 }
 int psys__behavior_count(const void *data) { return ((const behavior *)data)->k; }
 size_t psys__behavior_particle(const void *data, int i) { return ((const behavior *)data)->def.particles[i]; }
+const psys_behavior_def *psys__behavior_def(const void *data) { return &((const behavior *)data)->def; }
 void *psys__behavior_clone(const void *data)
 {
     behavior *b = malloc(sizeof *b);
@@ -567,132 +578,3 @@ psys_status psys_system_behavior(const psys_system *sys, size_t i, psys_behavior
         *def = ((const behavior *)psys_system_force_data(sys, i))->def;
     return PSYS_OK;
 }
-
-/* ---- scene form: {"type": "behavior", "function": NAME, "particles": [...], params, "ks", "kd"} ---- */
-
-static psys_status behavior_parse(psys__parse *p, const cJSON *obj, const char *path)
-{
-    psys_system *sys = psys__parse_system(p);
-    int d = sys->dim;
-    char kp[256];
-    snprintf(kp, sizeof kp, "%s.function", path);
-    const cJSON *fn = cJSON_GetObjectItemCaseSensitive(obj, "function");
-    if (!fn)
-        return psys__parse_fail(p, kp, NULL, "required key missing");
-    if (!cJSON_IsString(fn))
-        return psys__parse_fail(p, kp, fn, "must be a string");
-    psys_behavior_def def = psys_behavior_def_default();
-    const builtin *bi = NULL;
-    if (psys_behavior_function_from_name(fn->valuestring, &def.function) == PSYS_OK)
-        bi = find_builtin(def.function);
-    if (!bi) {
-        char known[160] = "";
-        for (size_t i = 0; i < NBUILTINS; i++)
-            snprintf(known + strlen(known), sizeof known - strlen(known), "%s%s", i ? ", " : "", builtins[i].name);
-        return psys__parse_fail(p, kp, fn, "unknown function (known: %s)", known);
-    }
-
-    const char *keys[10] = {"type", "function", "particles", "ks", "kd"};
-    for (int i = 0, n = 5; bi->keys[i]; i++)
-        keys[n++] = bi->keys[i];
-    psys_status st = psys__parse_keys(p, obj, path, keys);
-    if (st != PSYS_OK)
-        return st;
-
-    snprintf(kp, sizeof kp, "%s.particles", path);
-    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(obj, "particles");
-    if (!arr)
-        return psys__parse_fail(p, kp, NULL, "required key missing");
-    if (!cJSON_IsArray(arr) || cJSON_GetArraySize(arr) != bi->nparticles)
-        return psys__parse_fail(p, kp, arr, "must list exactly %d particle%s", bi->nparticles,
-                                bi->nparticles == 1 ? "" : "s");
-    def.nparticles = bi->nparticles;
-    int i = 0;
-    for (const cJSON *it = arr->child; it; it = it->next, i++) {
-        char ep[280];
-        snprintf(ep, sizeof ep, "%s[%d]", kp, i);
-        if ((st = psys__parse_ref_item(p, it, ep, &def.particles[i])) != PSYS_OK)
-            return st;
-        for (int j = 0; j < i; j++)
-            if (def.particles[j] == def.particles[i])
-                return psys__parse_fail(p, ep, it, "the same particle is listed twice");
-    }
-
-    if ((st = psys__parse_number(p, obj, path, "ks", false, 0, 0, false, &def.ks)) != PSYS_OK
-        || (st = psys__parse_number(p, obj, path, "kd", true, 0, 0, false, &def.kd)) != PSYS_OK)
-        return st;
-    switch (def.function) {
-    case PSYS_BEHAVIOR_DISTANCE:
-        st = psys__parse_number(p, obj, path, "r", true, -1, 0, false, &def.r);
-        break;
-    case PSYS_BEHAVIOR_POINT_ON_PLANE:
-        if ((st = psys__parse_vec(p, obj, path, "point", NULL, def.point)) == PSYS_OK
-            && (st = psys__parse_vec(p, obj, path, "normal", NULL, def.normal)) == PSYS_OK
-            && !(dot(def.normal, def.normal, d) > 0)) {
-            snprintf(kp, sizeof kp, "%s.normal", path);
-            st = psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(obj, "normal"), "must not be zero");
-        }
-        break;
-    case PSYS_BEHAVIOR_POINT_ON_SPHERE:
-        if ((st = psys__parse_vec(p, obj, path, "center", NULL, def.center)) == PSYS_OK)
-            st = psys__parse_number(p, obj, path, "radius", false, 0, 0, false, &def.radius);
-        break;
-    case PSYS_BEHAVIOR_ANGLE:
-        st = psys__parse_number(p, obj, path, "angle", true, -1, 0, false, &def.angle);
-        if (st == PSYS_OK && def.angle > PI) {
-            snprintf(kp, sizeof kp, "%s.angle", path);
-            st = psys__parse_fail(p, kp, cJSON_GetObjectItemCaseSensitive(obj, "angle"),
-                                  "must be at most pi (radians)");
-        }
-        break;
-    default:
-        break;
-    }
-    if (st == PSYS_OK && psys_system_add_behavior(sys, &def) != PSYS_OK)
-        st = psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
-    return st;
-}
-
-static psys_status behavior_save(const psys_system *sys, const void *data, cJSON *arr)
-{
-    const behavior *b = data;
-    const psys_behavior_def *def = &b->def;
-    int d = b->dim;
-    cJSON *o = cJSON_CreateObject(), *refs = NULL;
-    bool ok = o && cJSON_AddStringToObject(o, "type", "behavior")
-              && cJSON_AddStringToObject(o, "function", psys_behavior_function_name(def->function))
-              && (refs = cJSON_AddArrayToObject(o, "particles"));
-    for (int i = 0; ok && i < b->k; i++) {
-        cJSON *r = psys__ref_json(sys, def->particles[i]);
-        ok = r && cJSON_AddItemToArray(refs, r);
-    }
-    switch (def->function) {
-    case PSYS_BEHAVIOR_DISTANCE:
-        ok = ok && psys__add_num(o, "r", def->r);
-        break;
-    case PSYS_BEHAVIOR_POINT_ON_PLANE:
-        ok = ok && cJSON_AddItemToObjectCS(o, "point", psys__vec_json(def->point, d))
-             && cJSON_AddItemToObjectCS(o, "normal", psys__vec_json(def->normal, d));
-        break;
-    case PSYS_BEHAVIOR_POINT_ON_SPHERE:
-        ok = ok && cJSON_AddItemToObjectCS(o, "center", psys__vec_json(def->center, d))
-             && psys__add_num(o, "radius", def->radius);
-        break;
-    case PSYS_BEHAVIOR_ANGLE:
-        ok = ok && psys__add_num(o, "angle", def->angle);
-        break;
-    default:
-        break;
-    }
-    ok = ok && psys__add_num(o, "ks", def->ks) && psys__add_num(o, "kd", def->kd);
-    if (!ok) {
-        cJSON_Delete(o);
-        return PSYS_ERR_NOMEM;
-    }
-    cJSON_AddItemToArray(arr, o);
-    return PSYS_OK;
-}
-
-/* User-defined behaviours have their own class and no scene form: saving a
- * system with one fails with PSYS_ERR_UNSUPPORTED (scene_save.c). */
-const psys__force_io psys__behavior_io = {.type = "behavior", .cls = &psys_behavior_class, .parse = behavior_parse, .save = behavior_save};

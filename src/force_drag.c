@@ -1,12 +1,13 @@
 /* Viscous drag f = -kd v (notes §4.1): a unary, non-conservative force. */
 #include "springs.h"
 
-#include <cjson/cJSON.h>
 #include <stdlib.h>
 
 typedef struct drag {
     double kd;
 } drag;
+
+double psys__drag_kd(const void *data) { return ((const drag *)data)->kd; }
 
 static void drag_apply(void *data, const psys_force_eval *e, double *f)
 {
@@ -63,32 +64,6 @@ psys_status psys_system_add_drag(psys_system *sys, double kd)
     return psys_system_add_force(sys, &psys_drag_class, dr);
 }
 
-static psys_status drag_parse(psys__parse *p, const cJSON *obj, const char *path)
-{
-    static const char *const keys[] = {"type", "kd", NULL};
-    psys_system *sys = psys__parse_system(p);
-    double kd;
-    psys_status st = psys__parse_keys(p, obj, path, keys);
-    if (st == PSYS_OK)
-        st = psys__parse_number(p, obj, path, "kd", false, 0, 0, false, &kd);
-    if (st == PSYS_OK && psys_system_add_drag(sys, kd) != PSYS_OK)
-        st = psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
-    return st;
-}
-
-static psys_status drag_save(const psys_system *sys, const void *data, cJSON *arr)
-{
-    (void)sys;
-    cJSON *o = cJSON_CreateObject();
-    if (!o || !cJSON_AddStringToObject(o, "type", "drag")
-        || !psys__add_num(o, "kd", ((const drag *)data)->kd)) {
-        cJSON_Delete(o);
-        return PSYS_ERR_NOMEM;
-    }
-    cJSON_AddItemToArray(arr, o);
-    return PSYS_OK;
-}
-
 /* drag_apply for particles in component rows (the fused derivative). */
 /* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
 SPRING_CLONES
@@ -110,4 +85,3 @@ static void drag_rows(const void *data, int dim, size_t count, const double *mas
     }
 }
 
-const psys__force_io psys__drag_io = {.type = "drag", .cls = &psys_drag_class, .parse = drag_parse, .save = drag_save};

@@ -1,12 +1,13 @@
 /* Uniform gravity f = m g (notes §4.1): a unary force object. */
 #include "springs.h"
 
-#include <cjson/cJSON.h>
 #include <stdlib.h>
 
 typedef struct gravity {
     double g[3];
 } gravity;
+
+const double *psys__gravity_g(const void *data) { return ((const gravity *)data)->g; }
 
 static void gravity_apply(void *data, const psys_force_eval *e, double *f)
 {
@@ -90,32 +91,6 @@ psys_status psys_system_add_gravity(psys_system *sys, const double *g)
     return psys_system_add_force(sys, &psys_gravity_class, gr);
 }
 
-static psys_status gravity_parse(psys__parse *p, const cJSON *obj, const char *path)
-{
-    static const char *const keys[] = {"type", "g", NULL};
-    psys_system *sys = psys__parse_system(p);
-    double def[3] = {0, -9.81, 0}, g[3];
-    psys_status st = psys__parse_keys(p, obj, path, keys);
-    if (st == PSYS_OK)
-        st = psys__parse_vec(p, obj, path, "g", def, g);
-    if (st == PSYS_OK && psys_system_add_gravity(sys, g) != PSYS_OK)
-        st = psys__parse_fail(p, path, NULL, "%s", psys_system_last_error(sys));
-    return st;
-}
-
-static psys_status gravity_save(const psys_system *sys, const void *data, cJSON *arr)
-{
-    const gravity *gr = data;
-    cJSON *o = cJSON_CreateObject();
-    if (!o || !cJSON_AddStringToObject(o, "type", "gravity")
-        || !cJSON_AddItemToObjectCS(o, "g", psys__vec_json(gr->g, sys->dim))) {
-        cJSON_Delete(o);
-        return PSYS_ERR_NOMEM;
-    }
-    cJSON_AddItemToArray(arr, o);
-    return PSYS_OK;
-}
-
 /* gravity_apply for particles in component rows (the fused derivative). */
 /* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
 SPRING_CLONES
@@ -138,4 +113,3 @@ static void gravity_rows(const void *data, int dim, size_t count, const double *
     }
 }
 
-const psys__force_io psys__gravity_io = {.type = "gravity", .cls = &psys_gravity_class, .parse = gravity_parse, .save = gravity_save};

@@ -34,8 +34,6 @@
 #define PSYS_CLONES
 #endif
 
-struct cJSON;
-
 /** Fill err (may be NULL) with code and a printf-style message; returns code. */
 psys_status psys__fail(psys_error *err, psys_status code, const char *fmt, ...)
 #if defined(__GNUC__)
@@ -58,10 +56,6 @@ void *psys__realloc(void *p, size_t n, size_t size);
 void *psys__grow(void *p, size_t *cap, size_t want, size_t size);
 /** strdup that does not depend on POSIX. */
 char *psys__strdup(const char *s);
-/** JSON syntax check that allocates nothing (json_check.c): 0 valid, 1 syntax
- *  error, 2 arrays/objects nested deeper than max_depth; *where (may be NULL)
- *  gets the offset where it stopped. Accepts no more than cJSON does. */
-int psys__json_check(const char *text, size_t len, int max_depth, size_t *where);
 
 /** One force object of a system. */
 typedef struct psys__force {
@@ -237,6 +231,23 @@ struct psys_jacobian {
     bool definite; /* see psys_jacobian_wants_definite */
 };
 
+/** Gravity object's acceleration (force_gravity.c). */
+const double *psys__gravity_g(const void *data);
+/** Drag object's coefficient (force_drag.c). */
+double psys__drag_kd(const void *data);
+/** A mouse spring's particle, constants, fixed target (dim numbers) and
+ *  scripted path (*nframes frames of 1 + dim numbers; 0: none) (force_mouse.c). */
+void psys__mouse_get(const void *data, size_t *particle, double *ks, double *kd, const double **target,
+                     const double **frames, size_t *nframes);
+/** A pair force's definition, defaults resolved (force_pair.c). */
+const psys_pair_def *psys__pair_def(const void *data);
+/** A behaviour's definition as added, defaults resolved (force_behavior.c). */
+const psys_behavior_def *psys__behavior_def(const void *data);
+/** Built-in behaviour function i in table order (false past the end): its
+ *  function, name, particle count and the NULL-terminated keys of its
+ *  parameters in scenes (any out pointer may be NULL; force_behavior.c). */
+bool psys__behavior_builtin(size_t i, psys_behavior_function *f, const char **name, int *nparticles,
+                            const char *const **keys);
 /** A pair force's particles were replaced (not just moved): rebuild its lists
  *  and forget its cached forces at the next evaluation (force_pair.c). */
 void psys__pair_invalidate(void *data);
@@ -368,25 +379,22 @@ void psys__system_release(psys_system *s);
  *  referred to by forces, controllers or anything else yet. */
 void psys__system_truncate(psys_system *s, size_t n);
 
-/* ---- scene-format handlers per force type (one per force file) ---- */
-typedef struct psys__parse psys__parse;
-
-/** How one force type is read from and written to scenes. */
-typedef struct psys__force_io {
-    const char *type;                       /* JSON "type" */
-    const psys_force_class *cls;            /* NULL if the type has no class of its own */
-    /** Parse obj (path names it in messages) into sys. */
-    psys_status (*parse)(psys__parse *p, const struct cJSON *obj, const char *path);
-    /** Append JSON objects describing force object data to the array arr. */
-    psys_status (*save)(const psys_system *sys, const void *data, struct cJSON *arr);
-} psys__force_io;
-
-extern const psys__force_io psys__gravity_io;
-extern const psys__force_io psys__drag_io;
-extern const psys__force_io psys__spring_io;
-extern const psys__force_io psys__mouse_io;
-extern const psys__force_io psys__behavior_io;
-extern const psys__force_io psys__pair_io;
+/** A structure builder's validation problem, for callers that report it
+ *  in their own terms (the scene loader names the JSON path and value). */
+typedef struct psys__problem {
+    const char *key; /* field at fault (JSON key); NULL = out of memory */
+    long index;      /* element of key (pin[index], axes[index], size[index]) or -1 */
+    char what[200];  /* "must be ..." */
+    char got[120];   /* the offending value as C sees it */
+} psys__problem;
+/** Build a chain (first index not returned), the problem into *pb on failure. */
+psys_status psys__chain_build(psys_system *sys, const psys_chain_def *def, psys__problem *pb);
+/** Build a cloth (a beam is a cloth without bend springs), as psys__chain_build. */
+psys_status psys__cloth_build(psys_system *sys, const psys_cloth_def *def, psys__problem *pb);
+/** Build a block, as psys__chain_build. */
+psys_status psys__block_build(psys_system *sys, const psys_block_def *def, psys__problem *pb);
+/** Build a wheel, as psys__chain_build. */
+psys_status psys__wheel_build(psys_system *sys, const psys_wheel_def *def, psys__problem *pb);
 
 /* ---- plane collisions across MPI ranks (collide.c, mpi_domain.c) ---- */
 /** What psys__advance needs when the system is one rank's part of a larger
@@ -413,57 +421,5 @@ void psys__box_wrap(psys_system *s);
 /** Check pair force data (of class psys_pair_class or psys_pair_user_class)
  *  against box; on failure write a message into msg. */
 psys_status psys__pair_check_box(const void *pair, const psys__box *box, char *msg, size_t cap);
-/** Parse the scene's top-level "box" (scene_load.c calls it before particles and forces). */
-psys_status psys__parse_box(psys__parse *p, const struct cJSON *root);
-/** Add the system's box, if any, to the scene object root; false on out of memory. */
-bool psys__save_box(const psys_system *sys, struct cJSON *root);
-
-/** All force types known to scenes, NULL-terminated. */
-extern const psys__force_io *const psys__force_types[];
-
-/* ---- helpers for force parsers (scene_load.c) ---- */
-/** The system being built. */
-psys_system *psys__parse_system(psys__parse *p);
-/** Fail with "PATH: what (got VALUE)" where VALUE is item printed. */
-psys_status psys__parse_fail(psys__parse *p, const char *path, const struct cJSON *item, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 4, 5)))
-#endif
-    ;
-/** Reject keys of obj not in the NULL-terminated list allowed. */
-psys_status psys__parse_keys(psys__parse *p, const struct cJSON *obj, const char *path, const char *const *allowed);
-/** Read a finite number at key; if absent use def (required if !has_def). min is an
- *  inclusive lower bound unless min_exclusive. */
-psys_status psys__parse_number(psys__parse *p, const struct cJSON *obj, const char *path, const char *key,
-                               bool has_def, double def, double min, bool min_exclusive, double *out);
-/** Read a dim-vector at key (required if def is NULL, else defaults to def). */
-psys_status psys__parse_vec(psys__parse *p, const struct cJSON *obj, const char *path, const char *key,
-                            const double *def, double *out);
-/** Read a dim-vector from the array item it (kp names it in messages). */
-psys_status psys__parse_vec_item(psys__parse *p, const struct cJSON *it, const char *kp, int dim, double *out);
-/** Read a particle reference (id string or index) at key. */
-psys_status psys__parse_ref(psys__parse *p, const struct cJSON *obj, const char *path, const char *key, size_t *out);
-/** Read a particle reference from item itself (an array element); path names it. */
-psys_status psys__parse_ref_item(psys__parse *p, const struct cJSON *item, const char *path, size_t *out);
-/** Parse a JSON array of frames [[t, x...], ...] (t strictly increasing) at
- *  item; *frames is malloc'ed count × (1 + dim). */
-psys_status psys__parse_frames(psys__parse *p, const struct cJSON *item, const char *path, double **frames,
-                               size_t *count);
-/** JSON array of frames (exact numbers). */
-struct cJSON *psys__frames_json(const double *frames, size_t count, int dim);
-/** Add to arr a JSON reference to particle i (its id, else its index). */
-struct cJSON *psys__ref_json(const psys_system *sys, size_t i);
-/** A JSON number that reads back as exactly x. */
-struct cJSON *psys__num_json(double x);
-/** Add key: x (exact) to obj; NULL on failure. */
-struct cJSON *psys__add_num(struct cJSON *obj, const char *key, double x);
-/** A JSON array of dim numbers (exact). */
-struct cJSON *psys__vec_json(const double *v, int dim);
-/** Read the optional "muscle" object of obj into out = {amplitude, omega,
- *  phase, phase_step} (phase_step only accepted when with_step). */
-psys_status psys__parse_muscle(psys__parse *p, const struct cJSON *obj, const char *path, bool with_step,
-                               bool *present, double out[4]);
-/** Parse one element of the scene's "structures" array (structures.c). */
-psys_status psys__parse_structure(psys__parse *p, const struct cJSON *obj, const char *path);
 
 #endif

@@ -10,7 +10,7 @@
  * agree on every input): whitespace is any byte 1..32, numbers are what
  * cJSON's strtod reads (at most 63 characters), \u escapes must form valid
  * UTF-16 (no lone surrogates). */
-#include "internal.h"
+#include "io.h"
 
 #include <string.h>
 

@@ -1,6 +1,6 @@
 /* Scene loader (DESIGN §2): JSON text -> psys_system + psys_settings, with
  * every problem reported as "JSON.PATH: what is wrong (got VALUE)". */
-#include "internal.h"
+#include "io.h"
 #include "scene.h"
 
 #include <cjson/cJSON.h>

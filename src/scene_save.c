@@ -1,7 +1,7 @@
 /* Scene saver: the loaded system written back in the scene format, so that
  * loading the result gives the same system to the last bit (cJSON prints
  * numbers with up to 17 significant digits, enough to recover each double). */
-#include "internal.h"
+#include "io.h"
 #include "scene.h"
 
 #include <cjson/cJSON.h>

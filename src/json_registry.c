@@ -1,6 +1,6 @@
-/* The force types scenes know. Adding a force type: one file defining its
- * psys_force_class and psys__force_io, and one line here. */
-#include "internal.h"
+/* The force types scenes know. Adding a force type: its psys_force_class
+ * (force_*.c), its psys__force_io (json_*.c), and one line here. */
+#include "io.h"
 
 const psys__force_io *const psys__force_types[] = {
     &psys__gravity_io,
