@@ -6,15 +6,17 @@ WERROR     ?= $(if $(CI),ON,OFF)
 JOBS       ?= 2
 CMAKE_GEN  := -G Ninja
 
-.PHONY: all deps build test test-sanitize test-mpi test-mpi-sanitize fuzz demo images bench install clean
+.PHONY: all deps configure build test test-sanitize test-mpi test-mpi-sanitize fuzz demo images bench install clean
 
 all: build
 
 deps:
 	@bash scripts/install-deps.sh
 
-build: deps
+configure: deps
 	cmake -S . -B $(BUILD) $(CMAKE_GEN) -DCMAKE_BUILD_TYPE=Release -DPSYS_WERROR=$(WERROR)
+
+build: configure
 	cmake --build $(BUILD) -j $(JOBS)
 
 test: build
@@ -58,7 +60,11 @@ fuzz: build
 	bash fuzz/fuzz.sh long scene $(BUILD) $(FUZZ_SECONDS) $(FUZZ_FLAGS)
 	bash fuzz/fuzz.sh long cli $(BUILD) $(FUZZ_SECONDS) $(FUZZ_FLAGS)
 
-demo: build
+# The demo needs only the library and the psys program: just that target is
+# built (not the tests or the nested libFuzzer build, most of a full build's
+# time), in $(BUILD), so a later `make test` builds on it.
+demo: configure
+	cmake --build $(BUILD) -j $(JOBS) --target psys_cli
 	bash scripts/demo.sh $(BUILD)/psys
 
 # The pictures of the examples in README.md (docs/images/*.png).
