@@ -7,7 +7,7 @@
  * a small mass on the diagonal, stored as the upper triangle. */
 #include "check.h"
 
-#include "../src/amg.h"
+#include "../src/solvers/amg.h"
 
 #include <math.h>
 #include <stdlib.h>

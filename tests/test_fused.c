@@ -4,9 +4,9 @@
 #define _POSIX_C_SOURCE 200809L /* setenv */
 #include "check.h"
 
-#include "../src/bench.h"
-#include "../src/internal.h"
-#include "../src/springs.h"
+#include "../src/sim/bench.h"
+#include "../src/sim/sim.h"
+#include "../src/forces/springs.h"
 
 #include <stdarg.h>
 #include <stdint.h>

@@ -6,8 +6,8 @@
 #include "check.h"
 #include "helpers.h"
 
-#include "../src/bench.h"
-#include "../src/pair.h"
+#include "../src/sim/bench.h"
+#include "../src/pair/pair.h"
 
 #include <psys/psys.h>
 
@@ -463,7 +463,7 @@ static psys_system *cloud_with_pair(int dim, size_t n, double size, int law, psy
 
 /* Whether the grid's forces run four or eight rows at a time here
  * (pair_group.c: AVX2, not switched off). */
-/* Evaluations of pair force i whose rows ran in the vector loops (src/bench.h). */
+/* Evaluations of pair force i whose rows ran in the vector loops (src/sim/bench.h). */
 static size_t grouped_of(const psys_system *sys, size_t i)
 {
     size_t g = 0;

@@ -6,7 +6,7 @@
 
 #include <psys/psys.h>
 
-#include "../src/internal.h" /* psys__system_ode_fast */
+#include "../src/sim/sim.h" /* psys__system_ode_fast */
 
 #include <float.h>
 #include <math.h>

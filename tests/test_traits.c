@@ -8,7 +8,7 @@
 
 /* psys__fused_eligible: whether the fused derivative takes a system (the
  * fused path has no public observable). */
-#include "../src/internal.h"
+#include "../src/sim/sim.h"
 
 static const double G3[3] = {0.3, -9.81, 0.2};
 

@@ -13,7 +13,7 @@
  * case's floor: the bytes that must move per particle-step over it. */
 #include "cli.h"
 
-#include "bench.h" /* src/: psys__system_timing_settled */
+#include "sim/bench.h" /* private: psys__system_timing_settled */
 
 #include <ctype.h>
 #include <math.h>
@@ -299,7 +299,7 @@ static int bench_system(const char *name, psys_system *sys, const char *integrat
         return EXIT_RUN_FAILED;
     }
     /* One untimed step builds the spring plan and the pair lists, and
-     * more until the library's timed choices are made (src/bench.h:
+     * more until the library's timed choices are made (src/sim/bench.h:
      * psys__system_timing_settled); then calibrate the batch so one
      * repetition takes about `seconds`. */
     do {

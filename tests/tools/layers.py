@@ -1,10 +1,13 @@
 #!/usr/bin/env python3
 """The library's layers point one way (docs/architecture.md).
 
-    layers.py SRCDIR OBJDIR [--mpi]
+    layers.py SRCDIR OBJDIR
+    layers.py SRCDIR --objects "OBJ;OBJ;..."
 
-SRCDIR is the repository's src/ folder, OBJDIR the folder holding the
-library's compiled objects (CMake's CMakeFiles/psys.dir). Three checks, each
+SRCDIR is the repository's src/ folder; OBJDIR the folder holding the
+library's compiled objects (CMake's CMakeFiles/psys.dir), or --objects the
+list of them (CMake's $<TARGET_OBJECTS:psys>, so stale objects of files
+that no longer exist are not read). Three checks, each
 failure named by file:
 
 1. includes: a file of src/LAYER/ includes only headers of its own layer or
@@ -27,15 +30,15 @@ import sys
 # Lowest first. A layer may use any layer of a lower rank; layers of the
 # same rank know nothing of each other.
 RANK = {
-    "base": 0,     # errors, allocation, FPU mode
-    "solvers": 1,  # the ODE interface's solvers (numerics)
-    "pair": 1,     # neighbour grids and Barnes-Hut trees (numerics)
-    "core": 2,     # the particle system: particles, force list, controllers, planes, box
-    "forces": 3,   # one file per force type: physics only
-    "fast": 4,     # spring plan, fused derivative, state ordering
-    "sim": 5,      # the system as an ODE, the step loop, structures, drawing
-    "mpi": 6,      # spreading a run over MPI ranks
-    "io": 7,       # scene JSON, runs, output files
+    "base": 0,     # errors, allocation, OpenMP and CPU-dispatch macros
+    "solvers": 1,  # the ODE interface's solvers and the Jacobian sink (numerics)
+    "core": 2,     # the particle system's storage: particles, force list, controllers, planes
+    "pair": 3,     # neighbour grids and Barnes-Hut trees of pair forces
+    "forces": 4,   # one file per force type: physics only; the box and charges
+    "fast": 5,     # the fused one-sweep derivative and the springs' state order
+    "sim": 6,      # the system as an ODE, the step loop, structures, drawing
+    "mpi": 7,      # a run spread over MPI ranks (-DPSYS_MPI=ON builds)
+    "io": 8,       # scene JSON, runs, output files
 }
 MAX_CYCLE = 4
 INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]', re.M)
@@ -78,15 +81,18 @@ def check_includes(src, problems):
 
 
 def objects(objdir):
+    if isinstance(objdir, list):
+        paths = objdir
+    else:
+        paths = [os.path.join(root, name) for root, _, files in os.walk(objdir) for name in files]
     out = []
-    for root, _, files in os.walk(objdir):
-        for name in files:
-            if name.endswith(".o"):
-                path = os.path.join(root, name)
-                rel = os.path.relpath(path, objdir)
-                # CMake names objects after their source: src/core/system.c.o
-                rel = rel[len("src/"):] if rel.startswith("src/") else rel
-                out.append((rel[:-2] if rel.endswith(".c.o") else rel, path))
+    for path in paths:
+        if not path.endswith(".o"):
+            continue
+        # CMake names objects after their source: .../psys.dir/src/core/system.c.o
+        norm = path.replace(os.sep, "/")
+        rel = norm.split("/src/", 1)[1] if "/src/" in norm else os.path.basename(norm)
+        out.append((rel[:-4] if rel.endswith(".c.o") else rel, path))
     return sorted(out)
 
 
@@ -179,10 +185,13 @@ def check_uses(objdir, problems):
 
 
 def main(argv):
-    if len(argv) != 3:
-        print(__doc__.strip().splitlines()[2].strip(), file=sys.stderr)
+    if len(argv) == 4 and argv[2] == "--objects":
+        src, objdir = argv[1], [p for p in argv[3].split(";") if p]
+    elif len(argv) == 3:
+        src, objdir = argv[1], argv[2]
+    else:
+        print("usage: layers.py SRCDIR (OBJDIR | --objects 'OBJ;OBJ;...')", file=sys.stderr)
         return 2
-    src, objdir = argv[1], argv[2]
     problems = []
     check_includes(src, problems)
     n = check_uses(objdir, problems)
