@@ -1,4 +1,4 @@
-/* Scene loader (DESIGN §2): JSON text -> psys_system + psys_settings, with
+/* Scene loader (docs/scene-format.md): JSON text -> psys_system + psys_settings, with
  * every problem reported as "JSON.PATH: what is wrong (got VALUE)". */
 #include "io.h"
 #include "scene.h"
@@ -265,7 +265,8 @@ psys_status psys__parse_frames(psys__parse *p, const cJSON *item, const char *pa
     return PSYS_OK;
 }
 
-/* particle "control": circle / oscillate / keyframes (DESIGN §2, §3a). */
+/* particle "control": circle / oscillate / keyframes
+ * (docs/scene-format.md#controlled-particles, docs/semantics.md#controller-paths). */
 static psys_status parse_control(psys__parse *p, const cJSON *ctl, const char *path, size_t i)
 {
     static const char *const circle_keys[] = {"type", "center", "radius", "omega", "phase", "axis", NULL};
