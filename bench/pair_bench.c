@@ -1,8 +1,9 @@
-/* Pair-force benchmarks (programs, not tests; DESIGN §4). Each case prints
+/* Pair-force benchmarks (programs, not tests; bench/README.md). Each case prints
  * one JSON line per measurement.
  *
  *   pair_bench lj-melt [--cells C] [--steps S] [--threads T] [--reps R]
- *       The LAMMPS LJ melt (../shared/peers/in.lj): fcc lattice at reduced
+ *       The LAMMPS LJ melt (the peer in.lj, bench/README.md#peer-programs;
+ *       $PEERS): fcc lattice at reduced
  *       density 0.8442, C×C×C unit cells (C = 20: 32,000 atoms) in a periodic
  *       box, Lennard-Jones epsilon = sigma = 1 cut at 2.5 (no shift), skin
  *       0.3, uniform random velocities for temperature 1.44 (zero momentum;
@@ -58,7 +59,7 @@
  *       "crossover_below" when barnes-hut is faster at every size, with
  *       "crossover_above" when it is not faster at the largest.
  *
- * Timings depend on the host (see ../shared/peers/README.md, "Noise"):
+ * Timings depend on the host (its noise: bench/README.md#peer-programs):
  * compare only within one run. */
 #include <psys/psys.h>
 

@@ -1,6 +1,7 @@
 /* stiff_cloth: the stiff-cloth benchmark of issue 7 (bench/README.md).
  *
- * The cloth of ../shared/peers/bullet_cloth.cpp: N×N particles, 2 m × 2 m,
+ * The cloth of the peer bullet_cloth.cpp (bench/README.md#peer-programs;
+ * $PEERS): N×N particles, 2 m × 2 m,
  * 1 kg in all, horizontal at y = 2, hanging from the two corners of one edge,
  * gravity 9.81, simulated for 1 s. psys builds it with the scene loader's
  * `cloth` structure (structural, shear and bend springs) and steps it with the

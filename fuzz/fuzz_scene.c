@@ -5,8 +5,8 @@
  * and then: text2 == text1 (the round trip is a fixed point), both systems
  * have the same particles (count, dimension, positions, velocities, masses
  * bit for bit), springs and force objects, and a few steps of a run on each
- * give bit-identical states (DESIGN §3a: "loading that file gives the same
- * system ... and results to the last bit").
+ * give bit-identical states (docs/scene-format.md#saving-a-scene-back:
+ * loading that file gives the same system and results to the last bit).
  *
  * Inputs that ask for huge structures (a 10^4 × 10^4 cloth in 60 bytes) are
  * skipped: they are valid scenes that only cost time and memory here; the

@@ -1,5 +1,5 @@
-/* Allocation-failure injection (docs/trust.md, DESIGN §1 "every allocation
- * failure is handled").
+/* Allocation-failure injection (docs/trust.md#allocation-failure-injection,
+ * docs/semantics.md#library-rules: "every allocation failure is handled").
  *
  * This program is linked with -Wl,--wrap=malloc,--wrap=calloc,--wrap=realloc,
  * --wrap=strdup,--wrap=free against the static libpsys.a and the CLI's code,
@@ -16,8 +16,8 @@
  *     LeakSanitizer then reports them with stacks in the sanitizer build);
  *   - leave no half-written file: every output file is either untouched (its
  *     sentinel content) or identical to the reference run's, or, when the
- *     run failed while simulating (exit 1: DESIGN §3a keeps every frame up
- *     to the last good state), whole frames of it / a scene that loads; and
+ *     run failed while simulating (exit 1: every frame up to the last good
+ *     state is kept, docs/semantics.md#failed-and-interrupted-runs), whole frames of it / a scene that loads; and
  *     no temporary file (*.psys-tmp-*) is left.
  *
  *   test_alloc lib SCENE   load, run 5 steps writing CSV frames, save with a
@@ -481,7 +481,7 @@ typedef struct cli_case {
 static size_t scene_particles; /* particles of the scene (frames of the trajectory) */
 
 /* A run that fails while simulating (exit 1) keeps every frame up to the last
- * good state (DESIGN §3a): a valid partial file is whole lines of the
+ * good state (docs/semantics.md#failed-and-interrupted-runs): a valid partial file is whole lines of the
  * reference file (whole frames for a trajectory); a scene file loads. */
 static bool valid_partial(char kind, const char *got, const char *ref)
 {

@@ -1,4 +1,5 @@
-/* Behaviour-function forces (notes §6 eq. 2, ERRATA): the built-ins against
+/* Behaviour-function forces (notes §6 eq. 2,
+ * docs/notes-errata.md#6-eq-2-the-transpose-of-the-jacobian): the built-ins against
  * closed forms and eq. 1 springs, the Gauss–Newton force Jacobian, the
  * Jacobian checker, user functions (analytic and finite-difference J, in a
  * simulation), scene round trips and bad-input messages. */
@@ -40,7 +41,8 @@ static double max_abs(const double *a, size_t n)
     return m;
 }
 
-/* ---- distance = eq. 1 spring (ERRATA clarification) ---- */
+/* ---- distance = eq. 1 spring
+ * (docs/notes-errata.md#42-eq-1-and-the-distance-behaviour-function) ---- */
 
 static void distance_vs_spring(int dim)
 {
@@ -85,7 +87,8 @@ static void distance_vs_spring(int dim)
 static void distance_equals_spring_2d(void) { distance_vs_spring(2); }
 static void distance_equals_spring_3d(void) { distance_vs_spring(3); }
 
-/* ---- coincide: f1 = -ks(x1 - x2) - kd(v1 - v2), f2 = -f1 (ERRATA, DESIGN §3a) ---- */
+/* ---- coincide: f1 = -ks(x1 - x2) - kd(v1 - v2), f2 = -f1
+ * (docs/notes-errata.md#6-coincide-is-not-an-eq-1-spring-of-rest-length-0) ---- */
 
 static void coincide_closed_form(void)
 {

@@ -1,4 +1,5 @@
-/* Particle/plane collisions and contact (notes §7, ERRATA, DESIGN §3a),
+/* Particle/plane collisions and contact (notes §7,
+ * docs/notes-errata.md#73-contact-force, docs/semantics.md#planes),
  * pinned against closed forms:
  *   - a ball dropped from h onto a plane with restitution r rebounds to
  *     r²h, r⁴h, ... with impacts at t₁ = √(2h/g), t₁(1 + 2r), ...;
@@ -914,8 +915,9 @@ static void test_scene_plane_round_trip(void)
 }
 
 /* Normals are normalised on load: saving the normalised normal and loading
- * it again must give the same plane to the last bit (DESIGN §2: a scene
- * loaded and saved again must load to the same system). */
+ * it again must give the same plane to the last bit
+ * (docs/scene-format.md#saving-a-scene-back: a scene loaded and saved again
+ * must load to the same system). */
 static void test_scene_plane_round_trip_tilted(void)
 {
     plane_round_trip("{\"psys\":1,\"dim\":2,\"particles\":[{\"x\":[0,1]}],\"planes\":["

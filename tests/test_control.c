@@ -1,10 +1,13 @@
-/* Controlled particles (notes §5, ERRATA, DESIGN §3a) and mouse springs,
+/* Controlled particles (notes §5,
+ * docs/notes-errata.md#5-controlled-particles-position-and-velocity-at-every-stage,
+ * docs/semantics.md#controller-paths) and mouse springs,
  * pinned against closed forms:
  *   circle     x = c + R(cos(ωt+φ)u + sin(ωt+φ)w),  v = Rω(−sin(ωt+φ)u + cos(ωt+φ)w)
  *   oscillate  x = c + A sin(ωt+φ) d̂,              v = Aω cos(ωt+φ) d̂
  *   keyframes  piecewise linear, held (v = 0) outside the range
  *   mouse      f = −ks(x − p) − kd(v − ṗ),           U = ½ks|x − p|²
- * and the ERRATA point that velocity-dependent forces must see the
+ * and the errata point (docs/notes-errata.md, same section) that
+ * velocity-dependent forces must see the
  * controller's velocity at every stage time. */
 #include "check.h"
 #include "helpers.h"
@@ -445,7 +448,8 @@ static void test_keyframes_run(void)
 }
 
 /* ------------------------------------------------------------------ */
-/* ERRATA: velocity-dependent forces see the controller's velocity      */
+/* Velocity-dependent forces see the controller's velocity             */
+/* (docs/notes-errata.md#5-controlled-particles-position-and-velocity-at-every-stage) */
 /* ------------------------------------------------------------------ */
 
 typedef struct driven {
@@ -1147,7 +1151,8 @@ static void test_scene_round_trip_tilted(void)
                0);
 }
 
-/* The scene's controllers are the ones of DESIGN §3a (loaded values). */
+/* The scene's controllers are the ones of docs/semantics.md#controller-paths
+ * (loaded values). */
 static void test_scene_control_values(void)
 {
     psys_scene *sc = load_scene(scene2d);

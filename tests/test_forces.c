@@ -10,7 +10,8 @@
 #include <stdint.h>
 #include <string.h>
 
-/* Eq. 1 as in ERRATA, computed independently of the library:
+/* Eq. 1 as in docs/notes-errata.md#42-eq-1-and-the-distance-behaviour-function,
+ * computed independently of the library:
  * f_a = -[ks(|l| - r) + kd (l̇·l)/|l|] l/|l|, f_b = -f_a. */
 static void eq1_force(int dim, const double *xa, const double *xb, const double *va, const double *vb, double ks,
                       double kd, double r, double *fa)

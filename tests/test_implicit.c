@@ -20,7 +20,7 @@
 #define MAXN 64 /* state components of the small systems solved densely here */
 
 /* Under AddressSanitizer (the Debug sanitizer build) the 400-particle cloth
- * costs about 2 ms per CG iteration, ~50 s for its 5-second run, so that
+ * is too slow for its whole 5-second run (bench/HISTORY.md), so that
  * build runs only its first few steps (finiteness, pins, energy); the
  * settling checks run in the normal build. */
 #if defined(__SANITIZE_ADDRESS__)

@@ -1767,7 +1767,7 @@ static void scene_round_trip(void)
     psys_scene_destroy(s);
 }
 
-/* DESIGN §3a: A + B steps in one run equal A steps, a checkpoint, and B
+/* docs/semantics.md#resuming: A + B steps in one run equal A steps, a checkpoint, and B
  * resumed steps, bit for bit. Pair forces do not depend on when neighbour
  * lists were built, and positions wrapped into the box are saved exactly. */
 static void checkpoint_resume_bit_exact(void)

@@ -1,6 +1,7 @@
 /* Physics of particle systems built through the C API, pinned against closed
  * forms: projectiles, drag decay, damped oscillators, conservation of
- * momentum and energy, fixed particles, per-particle masses (ERRATA §3). */
+ * momentum and energy, fixed particles, per-particle masses
+ * (docs/notes-errata.md#3-particlederivative-each-particles-own-mass). */
 #include "check.h"
 #include "helpers.h"
 
@@ -350,7 +351,8 @@ static void fixed_particles_stay(void)
 }
 
 /* ------------------------------------------------------------------ */
-/* 9. Each particle's own mass (ERRATA §3: f[k]/p[i]->m).               */
+/* 9. Each particle's own mass (f[k]/p[i]->m,                          */
+/* docs/notes-errata.md#3-particlederivative-each-particles-own-mass)  */
 /* ------------------------------------------------------------------ */
 
 typedef struct const_force {
@@ -471,7 +473,8 @@ static void energy_accounting(void)
     CHECK_NEAR(psys_system_kinetic_energy(sys), ke, 1e-12 * ke);
     CHECK_NEAR(psys_system_potential_energy(sys), ug + us, 1e-12 * (fabs(ug) + us));
 
-    /* Gravity alone, 2-D: U = m·9.81·y for g = (0, −9.81) (DESIGN §3). */
+    /* Gravity alone, 2-D: U = m·9.81·y for g = (0, −9.81)
+     * (docs/semantics.md#energy). */
     psys_system *s2 = make_system(2);
     const double p2[2] = {4.0, 2.5}, q2[2] = {1.0, 7.0}, g2[2] = {0, -9.81};
     add_particle(s2, p2, NULL, 3.0);

@@ -6,7 +6,7 @@
 
 #include <stdio.h>
 
-/** Exit statuses of DESIGN §3. */
+/** Exit statuses of docs/cli.md#exit-status. */
 enum { EXIT_OK = 0, EXIT_RUN_FAILED = 1, EXIT_BAD_INPUT = 2 };
 
 /** Nonzero: cli_error prints nothing (MPI ranks other than 0). */

@@ -1,6 +1,7 @@
 /* psys bench: built-in benchmark cases printing one JSON line each
  * (bench/README.md explains the cases, the byte counts and the floor).
- *   cloth-N      the N×N sheet of ../shared/peers/ref_cloth.c (2 m × 2 m, 1 kg,
+ *   cloth-N      the N×N sheet of the peer ref_cloth.c (bench/README.md#peer-programs;
+ *                $PEERS) (2 m × 2 m, 1 kg,
  *                structural + shear + bend springs, two corners pinned,
  *                gravity, drag), N = 100, 256, 1024 (any N from 2 to 4096 by name), dt = 1/sqrt(17.6 ks N²);
  *                cloth-N-shuffled: the same with its particles numbered at random;
@@ -198,7 +199,8 @@ static double urand(void)
     return (double)(rng_state >> 11) * 0x1.0p-53;
 }
 
-/* The LAMMPS LJ melt (../shared/peers/in.lj; bench/pair_bench.c): fcc at
+/* The LAMMPS LJ melt (the peer in.lj, bench/README.md#peer-programs;
+ * bench/pair_bench.c): fcc at
  * density 0.8442, cells³ unit cells, T = 1.44, LJ cut at 2.5, skin 0.3. */
 static psys_system *build_lj(int cells)
 {

@@ -184,7 +184,8 @@ static char *scene_file_text(const run_opts *o, psys_scene **scene, long long *l
 
 /* Rank 0's scene (NULL: it failed) to every rank: the scene file's text, or
  * for a checkpoint or standard input the exact scene text a checkpoint
- * holds (saving and loading is exact, DESIGN §2). Every rank returns its
+ * holds (saving and loading is exact, docs/scene-format.md#saving-a-scene-back).
+ * Every rank returns its
  * scene, or NULL when any rank has none. */
 static psys_scene *share_scene(const run_opts *o, psys_scene *scene)
 {

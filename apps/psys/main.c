@@ -1,4 +1,4 @@
-/* psys: the command-line program (DESIGN §3). */
+/* psys: the command-line program (docs/cli.md). */
 #include "cli.h"
 
 #include <stdlib.h>

@@ -2,7 +2,8 @@
  * mouse spring). The document is the scene itself: additions, pins and
  * motors go straight through the library's API; removals (which the library
  * has no call for) edit the scene's JSON form (psys_scene_to_string) and
- * load it again, which the round-trip contract (DESIGN §2) makes exact.
+ * load it again, which the round-trip contract
+ * (docs/scene-format.md#saving-a-scene-back) makes exact.
  * Undo keeps the scene text (and clock) from before each edit. */
 #include "view_internal.h"
 

@@ -322,7 +322,8 @@ extern const psys_force_class psys_drag_class;
 extern const psys_force_class psys_spring_class;
 
 /* ------------------------------------------------------------------ */
-/* Behaviour functions ("energy" forces, notes §6 eq. 2, ERRATA)       */
+/* Behaviour functions ("energy" forces, notes §6 eq. 2;              */
+/* docs/notes-errata.md#6-eq-2-the-transpose-of-the-jacobian)         */
 /* ------------------------------------------------------------------ */
 /* A behaviour function C(x_1..x_k) ∈ R^m vanishes when its particles are
  * "happy". It becomes the force f_i = -(∂C/∂x_i)ᵀ (k_s C + k_d Ċ) with
@@ -413,7 +414,9 @@ extern const psys_force_class psys_behavior_class;
 extern const psys_force_class psys_behavior_user_class;
 /* ---- end of behaviour functions ---- */
 
-/* ---- Controlled particles (notes §5, ERRATA) ----
+/* ---- Controlled particles (notes §5,
+ * docs/notes-errata.md#5-controlled-particles-position-and-velocity-at-every-stage,
+ * docs/semantics.md#projection-at-every-stage) ----
  * Not integrated: at every derivative evaluation their position AND velocity
  * are set from the controller at the stage time, so damped springs and drag
  * attached to them see the right velocity. */
@@ -457,7 +460,8 @@ psys_status psys_system_remove_force(psys_system *sys, size_t i);
 /** The force class of mouse springs. */
 extern const psys_force_class psys_mouse_spring_class;
 
-/* ---- Planes: collisions and contact (notes §7, ERRATA) ---- */
+/* ---- Planes: collisions and contact (notes §7,
+ * docs/notes-errata.md#73-contact-force) ---- */
 
 /** How a particle found behind a plane after a step is handled. */
 typedef enum psys_response {
@@ -479,7 +483,8 @@ typedef struct psys_plane_def {
     double backward_friction; /**< k_f for tangential velocity with v_t·forward < 0 */
 } psys_plane_def;
 
-/** Defaults of DESIGN §3a: restitution 0.5, friction 0, rollback, normal +y. */
+/** Defaults (docs/semantics.md#planes): restitution 0.5, friction 0,
+ * rollback, normal +y. */
 psys_plane_def psys_plane_def_default(void);
 /** Add a plane. */
 psys_status psys_system_add_plane(psys_system *sys, const psys_plane_def *def);
@@ -523,7 +528,8 @@ psys_status psys_system_dense_jacobian(psys_system *sys, double *dfdx, double *d
 psys_status psys_system_fd_jacobian(psys_system *sys, double eps, double *dfdx, double *dfdv);
 
 /* ------------------------------------------------------------------ */
-/* Structures (notes §5, DESIGN §3a) and muscle springs                */
+/* Structures (notes §5, docs/scene-format.md#structures) and muscle  */
+/* springs                                                            */
 /* Builders add particles and springs (into the system's spring set)   */
 /* in a documented order (docs/scene-format.md, "Structures"): grid    */
 /* particle (i,j,k) is first + i + nx·(j + ny·k); with an id, particles */
@@ -747,7 +753,7 @@ int psys_system_threads(const psys_system *sys);
 int psys_system_effective_threads(const psys_system *sys);
 
 /* ------------------------------------------------------------------ */
-/* Scenes (JSON, DESIGN §2)                                            */
+/* Scenes (JSON, docs/scene-format.md)                                 */
 /* ------------------------------------------------------------------ */
 
 /** Run settings that come with a scene. */
@@ -780,7 +786,8 @@ typedef struct psys_resume_state {
 /** A loaded scene: the system and its run settings. */
 typedef struct psys_scene psys_scene;
 
-/** Settings with DESIGN's defaults (rk4, dt 0.001, duration 1, ...). */
+/** Settings with the defaults of docs/scene-format.md#top-level-keys
+ * (rk4, dt 0.001, duration 1, ...). */
 psys_settings psys_settings_default(void);
 
 /** Parse a scene from memory; name is used in messages. On failure returns
@@ -801,7 +808,8 @@ const psys_resume_state *psys_scene_resume_state(const psys_scene *scene);
 char *psys_scene_to_string(const psys_scene *scene, const psys_resume_state *resume, psys_error *err);
 
 /* ------------------------------------------------------------------ */
-/* Runs (DESIGN §3a): steps, duration, frames, checkpoints             */
+/* Runs (docs/semantics.md#steps-and-frames, #checkpoints): steps,     */
+/* duration, frames, checkpoints                                       */
 /* ------------------------------------------------------------------ */
 
 /** Steps a scene's system according to its settings. */
@@ -831,7 +839,7 @@ psys_resume_state psys_run_resume_state(const psys_run *run);
 const psys_solver *psys_run_solver(const psys_run *run);
 
 /* ------------------------------------------------------------------ */
-/* Output files (DESIGN §3)                                            */
+/* Output files (docs/cli.md#output-files)                             */
 /* ------------------------------------------------------------------ */
 
 /** Write the trajectory CSV header (step,t,i,x,y[,z],vx,vy[,vz]). */

@@ -1,6 +1,7 @@
 /* Controlled particles (notes §5): circle motors, oscillators, keyframed
  * paths and C callbacks. Their state is imposed, never integrated; velocities
- * are the exact time derivatives of the paths (ERRATA). */
+ * are the exact time derivatives of the paths
+ * (docs/notes-errata.md#5-controlled-particles-position-and-velocity-at-every-stage). */
 #include "core/core.h"
 
 #include <math.h>

@@ -1,5 +1,6 @@
-/* Behaviour-function ("energy") forces, notes §6 eq. 2 with the ERRATA's
- * transpose: for C(x_1..x_k) ∈ R^m with J = ∂C/∂x (m × k·dim),
+/* Behaviour-function ("energy") forces, notes §6 eq. 2 with the transpose of
+ * docs/notes-errata.md#6-eq-2-the-transpose-of-the-jacobian:
+ * for C(x_1..x_k) ∈ R^m with J = ∂C/∂x (m × k·dim),
  *   f = -Jᵀ (k_s C + k_d Ċ),  Ċ = J v,  E = ½ k_s C·C.
  * Each behaviour is one force object. Built-in functions (coincide, distance,
  * point-on-plane, point-on-sphere, angle) and user callbacks share the same

@@ -40,8 +40,8 @@
 #define PAIR_CLONES __attribute__((target_clones("avx512f", "arch=x86-64-v3", "default")))
 /* The scalar force loops (user laws, the half-list sweep, fallbacks),
  * built again for x86-64-v3 so that their fused multiply-adds are
- * instructions rather than calls to libm's fma (5 × slower for the direct
- * method with a user law, measured). */
+ * instructions rather than calls to libm's fma, which make the direct
+ * method with a user law several times slower (bench/HISTORY.md). */
 #define PAIR_FMA_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define PAIR_CLONES

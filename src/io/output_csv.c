@@ -1,4 +1,5 @@
-/* Trajectory and energy CSV (DESIGN §3): %.17g so readers recover the exact doubles. */
+/* Trajectory and energy CSV (docs/cli.md#output-files): %.17g so readers
+ * recover the exact doubles. */
 #include "mpi/mpi.h"
 
 #include <stdio.h>

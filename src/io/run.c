@@ -1,4 +1,4 @@
-/* Runs (DESIGN §3a): step counts, exact durations, output frames, rk45
+/* Runs (docs/semantics.md#steps-and-frames): step counts, exact durations, output frames, rk45
  * landing on output times, and the clock state a checkpoint needs.
  *
  * Fixed-step time is t = base_t + (step - base_step)·dt rather than a running

@@ -1,4 +1,4 @@
-/* Scene loader (DESIGN §2): JSON text -> psys_system + psys_settings, with
+/* Scene loader (docs/scene-format.md): JSON text -> psys_system + psys_settings, with
  * every problem reported as "JSON.PATH: what is wrong (got VALUE)". */
 #include "io/io.h"
 #include "io/scene.h"

@@ -10,7 +10,7 @@
  * lane adds its own partners' forces in its own list order, so the four
  * chains run side by side, and each partner comes in as one 32-byte record
  * (x, y, z, 0) of a copy of the positions, four of them transposed into
- * vectors (faster than gathers on the AMD host measured, bench/README).
+ * vectors (cheaper than gathers; bench/HISTORY.md).
  *
  * Same bits: per lane, the operations of pair_row_terms and pair_kernel in
  * the same order (the fused multiply-adds of pair_force_r2 and of the sums,
@@ -22,15 +22,15 @@
  *
  * Lists: a copy of the grid's full lists interleaved by group (entry k of
  * the group's rows side by side, psys__pair_group_lists), made after each
- * build: the loop then reads one stream of indices instead of one per row
- * (LJ melt, 32,000 atoms: 291 against 346 ns per atom-step, bench/README).
+ * build: the loop then reads one stream of indices instead of one per row,
+ * which is faster (bench/HISTORY.md).
  * A row shorter than its group's longest is padded with its own index, a
  * partner masked out.
  *
  * Partial evaluations (the rows a wrap or a small move changed, a few per
  * group of consecutive rows) take the marked rows eight at a time wherever
- * they lie, with their lists interleaved on the fly (group8_sparse; LJ melt
- * of 864 atoms: 18–21 against 26–29 µs per partial evaluation). */
+ * they lie, with their lists interleaved on the fly (group8_sparse): cheaper
+ * than every group of eight consecutive rows that holds one (bench/HISTORY.md). */
 #include "pair/pair.h"
 
 #include <stddef.h>
@@ -178,7 +178,7 @@ AVX2 __attribute__((always_inline)) static inline bool group_rows(const group_co
     for (uint32_t k = 0; k < len; k++) {
         const uint32_t *j = in->il + (size_t)GROUP * k;
         /* the four partners' records (x, y, z, 0), transposed: one load per
-         * partner beats three gathers on the host measured (bench/README) */
+         * partner beats three gathers (bench/HISTORY.md) */
         const __m256d p0 = _mm256_load_pd(Q + j[0]), p1 = _mm256_load_pd(Q + j[1]);
         const __m256d p2 = _mm256_load_pd(Q + j[2]), p3 = _mm256_load_pd(Q + j[3]);
         const __m256d u0 = _mm256_unpacklo_pd(p0, p1), u1 = _mm256_unpackhi_pd(p0, p1);
@@ -311,8 +311,8 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
 
 /* ---- Eight rows at a time (AVX-512: AVX512F, VL, DQ) ----
  * The same scheme with eight lanes: the partners' records loaded two to a
- * 512-bit register and transposed (gathers were much slower on the AMD
- * host measured, bench/README). Per lane the operations and the order of
+ * 512-bit register and transposed (gathers were much slower;
+ * bench/HISTORY.md). Per lane the operations and the order of
  * group_rows, so the same bits. */
 #define GROUP8 8
 #define GROUP8_BLOCK 32 /* entries of a sparse group interleaved at a time */
@@ -641,10 +641,9 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
      * already (a lattice, a data file written in order), else of
      * consecutive slots of the cell order: either way rows near each other
      * in space, whose partners are mostly the same particles, so the
-     * records a group reads are in cache from the groups before it (random
-     * numbering, 256,000 LJ atoms: 422-464 against 363-377 ns per
-     * atom-step; in a lattice's own order the cell order was about 3 %
-     * slower; bench/README.md). Each row's sum is the same however rows are
+     * records a group reads are in cache from the groups before it (the
+     * cell order pays where the numbering is random and costs a little
+     * where it is local already; bench/HISTORY.md). Each row's sum is the same however rows are
      * grouped: the bits do not depend on it. */
     /* consecutive particles at most two cells apart on every axis, in a
      * sample of every sixteenth pair (the divisions cost a few per cent

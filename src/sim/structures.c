@@ -1,4 +1,5 @@
-/* Structures (notes §5 "Structures", DESIGN §3a): builders of mass-and-spring
+/* Structures (notes §5 "Structures", docs/scene-format.md#structures):
+ * builders of mass-and-spring
  * chains, cloth sheets, beams, blocks and wheels, for the C API and the
  * scene's "structures" array (json_structures.c).
  *

@@ -760,8 +760,8 @@ bool psys__amg_refresh(psys__amg *a)
 
 /* Damped block Jacobi, the smoother: x = ω D⁻¹ b (from zero, before the
  * coarse correction) or x += ω D⁻¹ (b - A x) (after it; t holds A x). The
- * same ω both times keeps the cycle symmetric. It needs more cycles than
- * Gauss–Seidel (about 20% on the stiff cloth) but one pass over the matrix
+ * same ω both times keeps the cycle symmetric. It needs somewhat more cycles
+ * than Gauss–Seidel (bench/HISTORY.md) but one pass over the matrix
  * instead of three, which is what costs: the sweeps are memory bound. */
 static void jacobi(const level *L, int bs, bool from_zero)
 {

@@ -28,7 +28,8 @@ void psys__amg_update(psys__amg *a);
  * returned. Otherwise (or out of memory) false, and the caller creates the
  * hierarchy anew. The preconditioner is then a function of the current
  * matrix alone, not of when it was built: a run resumed from a checkpoint
- * finds the same one (DESIGN §3a). Allocates only scratch. */
+ * finds the same one (docs/semantics.md#what-a-checkpoint-holds). Allocates
+ * only scratch. */
 bool psys__amg_refresh(psys__amg *a);
 /* z = one symmetric multigrid cycle (V at the finest level, W below) applied
  * to r (an SPD approximation of A⁻¹ r):
