@@ -45,7 +45,7 @@ typedef struct psys__plane {
     double backward_friction;
 } psys__plane;
 
-/** Simulation box (DESIGN §2 `box`): periodic axes wrap positions and pair
+/** Simulation box (docs/scene-format.md#periodic-box): periodic axes wrap positions and pair
  *  forces use the minimum image there. */
 typedef struct psys__box {
     bool on;              /* a box is set */

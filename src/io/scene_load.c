@@ -11,7 +11,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* particle "control": circle / oscillate / keyframes (DESIGN §2, §3a). */
+/* particle "control": circle / oscillate / keyframes
+ * (docs/scene-format.md#controlled-particles, docs/semantics.md#controller-paths). */
 static psys_status parse_control(psys__parse *p, const cJSON *ctl, const char *path, size_t i)
 {
     static const char *const circle_keys[] = {"type", "center", "radius", "omega", "phase", "axis", NULL};
