@@ -136,8 +136,8 @@ window_list_f(const pair_grid *g, size_t sl, const float *const x[3], const uint
 /* Append candidates [t0, t1) of cell_x/cell_list with image shift sh[] to
  * the window, moving the live entries to the front when the end is reached;
  * false if they do not fit even then. Whole vectors are stored (the
- * padding past the end takes what spills): masked stores were a fifth of
- * the fill's time. */
+ * padding past the end takes what spills): masked stores made the fill
+ * markedly slower (figures: bench/HISTORY.md). */
 __attribute__((target("avx512f"), always_inline)) static inline bool
 window_add(const pair_grid *g, cand_win *w, uint32_t t0, uint32_t t1, const double sh[3], const int d,
            const bool f32)

@@ -120,8 +120,8 @@ __attribute__((target("avx512f"))) static size_t scan_avx512(const pair_grid *g,
  * image). Positions from n on hold UINT32_MAX and keep it, so the registers
  * past the last loaded one are never touched: a list of 77 costs five
  * registers, not eight. No branches on the data; sorting each list as it
- * is filled, in cache, beat sorting all of them by transposition (LJ melt,
- * 32,000 atoms: 251.8 against 272.4 ns per atom-step, bench/README). */
+ * is filled, while it is in cache, is faster than sorting them all by
+ * transposition afterwards (figures: bench/HISTORY.md). */
 #define SORT512_REGS 8
 /* v with lane l taking lane l ^ X: in-lane shuffles with an immediate and
  * 128-bit lane moves (one or two instructions of a cycle each) instead of
