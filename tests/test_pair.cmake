@@ -8,7 +8,7 @@ psys_c_test(test_pair
 # Threads sleep rather than spin between parallel regions: ctest runs tests
 # side by side on few cores, where spinning threads starve each other.
 # The grid tests again with the portable candidate scan of the list builds
-# (pair_grid.c uses an AVX-512 one where the CPU has it): the same bits.
+# (pair_scan.c uses an AVX-512 one where the CPU has it): the same bits.
 foreach(case sort_lists grid_equals_direct_3d grid_equals_direct_periodic_3d grid_equals_direct_dense grid_cache_matches_direct thread_determinism_grid
              checkpoint_resume_bit_exact grid_lists_keep_radius)
   add_test(NAME test_pair.plain_scan.${case} COMMAND test_pair ${case})

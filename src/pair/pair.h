@@ -1,5 +1,6 @@
-/* Internals shared by the pair-force files (force_pair.c, pair_grid.c,
- * pair_bh.c): the force object, the law kernels and the minimum image.
+/* Internals shared by the pair-force files (force_pair.c, the grid's files
+ * of pair_grid.h, pair_bh.c): the force object, the law kernels and the
+ * minimum image.
  *
  * Determinism. Every method computes the force on particle i as a sum over
  * its partners j in increasing index order, starting from zero, and adds the
@@ -76,7 +77,7 @@ typedef struct pair_grid {
     size_t chunks_cap;
     double per_particle;   /* list entries per particle at the last build (region sizing) */
     size_t longest;        /* the longest list of the last cell-by-cell build (its room per particle) */
-    void *win;             /* win_n per-thread candidate windows of the cell-by-cell build (pair_grid.c) */
+    void *win;             /* win_n per-thread candidate windows of the cell-by-cell build (pair_cells.c) */
     size_t win_n;
     bool half;             /* lists hold only partners j > i (one thread evaluates), else all */
     bool want_full;        /* full lists from now on (a Jacobian was asked for) */
@@ -89,7 +90,7 @@ typedef struct pair_grid {
     uint32_t *changed;         /* cap: particles whose position changed (between builds; a build uses it as scratch) */
     bool cache_ok;
     size_t cache_n, cache_rebuilds;
-    /* displacement check (pair_grid.c): the two largest squared
+    /* displacement check (pair_moved.c): the two largest squared
      * displacements since the build at xcache's positions (disp_ok), and
      * those of the evaluation under way (disp_now); moved_n particles in
      * changed[] differ from xcache when moved_ready (set by the check for
@@ -472,7 +473,7 @@ static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
     return pair_threads(p, per * (double)n) <= 2;
 }
 
-/* ---- pair_grid.c ---- */
+/* ---- pair_grid.c, pair_moved.c, pair_scan.c ---- */
 /** Make the neighbour lists valid for positions x (rebuild if the two largest
  *  displacements add up to the skin, the particle count, the box or the
  *  wanted kind of list (half, full) changed).
