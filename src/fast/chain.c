@@ -88,6 +88,7 @@ static void chain_trapezoid(const fused *fz, int stages, int d, double *rings, s
             return;
     }
 }
+
 /* The chain's stage states in rings (psys__fused_chain). Within one
  * trapezoid, stage i + 1 has left every particle before stage i's done −
  * reach − CHAIN_STEP by the time stage i writes a state: rings of R >
@@ -114,6 +115,7 @@ static void stage_rings(fused *dst, const fused *src, int stages, double *mem, s
         dst[i].out_ring = i + 1 < stages ? mem + 2 * rd * (size_t)i : NULL;
     }
 }
+
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
                               const psys__stage_pass *pass, bool *used)
 {

@@ -50,6 +50,7 @@
  * there it was faster (cloth-1024 0.95 ×, rope-1000000 0.93 ×), at 100²
  * about 1.02 × slower (bench/README.md, "Held-back leavings"). */
 #define FUSED_HOLD_MIN 32768
+
 /* The row kernel of force class cls, or NULL: the fused path takes the
  * per-particle forces that have one. */
 static rows_fn rows_of(const psys_force_class *cls)
@@ -101,6 +102,7 @@ bool psys__fused_takes(const psys_system *s, fused *fz)
     }
     return after;
 }
+
 /* The end of the piece of particles [a, e) that lies in the window's
  * slots before they wrap around (slot W − 1 is followed by slot 0). */
 static inline size_t window_piece_end(const fused *fz, size_t a, size_t e)
@@ -123,6 +125,7 @@ static inline size_t ring_piece(const fused *fz, size_t a, size_t cnt)
         e = fz->zhi;
     return e - a;
 }
+
 /* Entering (window_move) for slots [a, a + cnt) in the springs' internal order: x, v and
  * the masses gathered particle by particle, in pieces of SPRING_BLOCK (the
  * forces before the springs act on each particle alone). */
@@ -188,6 +191,7 @@ static FUSED_INLINE void enter_rows(const fused *fz, double *rb, size_t a, size_
     for (int k = 0; k < fz->npre; k++)
         fz->pre[k].fn(fz->pre[k].data, d, cnt, fz->mass + a, (const double *const *)V, F, k == 0);
 }
+
 /* Leaving (window_move) for slots [a, a + cnt) in the springs' internal order: each
  * particle's derivative (or the solver's work on it) at its own place, the
  * same expressions element by element. */
@@ -313,6 +317,7 @@ static FUSED_INLINE void window_move(const fused *fz, double *rb, size_t a, size
             leave_rows(fz, rb, a, m, d);
     }
 }
+
 /* A sweep of [P, Q) through runs [r0, r1), nothing done yet: the window
  * starts at the block of the first run touching [P, Q), or at P. */
 void psys__fused_sweep_start(const springs *s, sweep *w, size_t r0, size_t r1, size_t P, size_t Q)
@@ -328,6 +333,7 @@ void psys__fused_sweep_start(const springs *s, sweep *w, size_t r0, size_t r1, s
     }
     *w = (sweep){.r = r0, .r1 = r1, .P = P, .Q = Q, .loaded = start, .done = start};
 }
+
 /* Go on with sweep w until every particle before `upto` (and in [P, Q))
  * has left the window: the runs whose block of first particles starts
  * before upto (no later run touches a particle before it). The window is
@@ -549,6 +555,7 @@ static void fused_part(const fused *fz, int d, double *rb, size_t r0, size_t r1,
     psys__fused_sweep_start(fz->s, &w, r0, r1, P, Q);
     psys__fused_sweep(fz, d, rb, &w, Q);
 }
+
 /* fz (its forces from psys__fused_takes()) over sys's springs, windows and
  * particles: the state y, and either ydot or the solver's pass. */
 void psys__fused_bind(fused *fz, const psys_system *sys, const double *x, const double *v, double *ydot,
@@ -642,6 +649,7 @@ psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, c
     *used = true;
     return PSYS_OK;
 }
+
 size_t psys__fused_held(const psys_system *sys)
 {
     springs *s = sys->springs;

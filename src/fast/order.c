@@ -15,6 +15,7 @@
  * instead of a gather and a scatter across the whole state per particle
  * and stage. The state moves between the two orders once per step (the
  * solver's get_state and commit) instead of at every stage. */
+
 bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
 {
     s->ode_perm = NULL;
@@ -68,6 +69,7 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
 }
 
 void psys__state_order_end(psys_system *s) { s->ode_perm = NULL; }
+
 const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n, unsigned *plan)
 {
     fused fz;
