@@ -492,7 +492,8 @@ static void ode_project(void *ctx, double t, double *y)
 static double ode_get_time(void *ctx) { return ((const psys_system *)ctx)->t; }
 static void ode_set_time(void *ctx, double t) { ((psys_system *)ctx)->t = t; }
 
-/* Notes' ParticleDerivative with each particle's own mass (ERRATA):
+/* Notes' ParticleDerivative with each particle's own mass
+ * (docs/notes-errata.md#3-particlederivative-each-particles-own-mass):
  * [x' | v'] = [v | f/m]; fixed particles have inv_mass 0 and v 0. Without
  * with_v the first half is left as it was, unless the fused sweep runs. */
 static psys_status derivative_into(void *ctx, double t, const double *y, double *ydot, bool with_v)

@@ -13,16 +13,16 @@
 
 /* By default the chain runs when the springs reach at most this many
  * particles (ropes, chains, strips of a few dozen columns): there the
- * stages' span stays in L2 and the sweep was faster (bench/README.md:
- * rope-10⁶ rk4 0.81 and 0.87 × the time of stage by stage on 1 thread,
- * 0.83 and 0.90 × on 2). Cloths (bend springs two rows long: reach 712 at
- * 100 columns, 1,024 at 256) reach further: see chain_timed.
+ * stages' span stays in L2 and the sweep was faster than stage by stage
+ * on one thread and on two (bench/README.md; figures in bench/HISTORY.md).
+ * Cloths (bend springs two rows long: reach 712 at 100 columns, 1,024 at
+ * 256) reach further: see chain_timed.
  * PSYS_CHAIN=1 runs it whenever it can (tests), 0 never. */
 #define CHAIN_AUTO_REACH 600
 
 /* Beyond that reach the two were measured either way round on different
- * hosts (cloth-1024 rk4, bench/README.md: the chain 1.02-1.05 × the time of
- * stage by stage on an Intel host, 0.58-0.72 × on an AMD one), so there
+ * hosts (the chain slower on an Intel host, faster on an AMD one:
+ * bench/README.md; figures in bench/HISTORY.md), so there
  * each system's first steps time both, alternating, CHAIN_TRIALS steps of
  * each, and the mode whose fastest step was faster stays. A step's time
  * runs from the solver asking whether the chain takes it to the next

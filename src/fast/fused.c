@@ -47,8 +47,8 @@
 #define FUSED_ENTER 64
 /* Leavings are held back into the run loops (exitq) for systems of at
  * least this many particles, whose solver's vectors stream from beyond L2:
- * there it was faster (cloth-1024 0.95 ×, rope-1000000 0.93 ×), at 100²
- * about 1.02 × slower (bench/README.md, "Held-back leavings"). */
+ * there it was faster, on small cloths slower (bench/README.md, "Held-back
+ * leavings"; figures in bench/HISTORY.md). */
 #define FUSED_HOLD_MIN 32768
 
 /* The row kernel of force class cls, or NULL: the fused path takes the
@@ -60,9 +60,7 @@ static rows_fn rows_of(const psys_force_class *cls)
 
 /* The fused path runs whenever a system is eligible: it was not slower
  * than the generic one at any size measured, and mostly faster, even in
- * cache (cloth-N, rk4, one thread, AMD EPYC family 26, AVX-512: N = 8 to
- * 256, 1.2 to 3.9 × faster; on an AVX2 family 25 host the two were equal
- * at 100²; bench/README.md).
+ * cache (bench/README.md; figures in bench/HISTORY.md).
  * PSYS_FUSED=0 turns it off; PSYS_FUSED=1 also runs small sets on all the
  * evaluation's threads (tests, benchmarks). */
 
@@ -526,7 +524,7 @@ static bool holds_back(const fused *fz)
 
 /* fused_sweep_512 holding leavings back (holds_back), 3-D: a function of
  * its own, so that the loops that do not hold back stay as they were
- * (cloth-100, never held back, was slower with both in one function). */
+ * (with both in one function those were slower: bench/HISTORY.md). */
 __attribute__((target("avx512f"), flatten)) static void fused_sweep_512_held(const fused *fz, double *rb, sweep *w,
                                                                            size_t upto)
 {

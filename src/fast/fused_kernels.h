@@ -480,9 +480,10 @@ __attribute__((target("avx512f"))) static void run_near_512(double *rb, size_t S
 
 /* run_pair on AVX-512: eight springs to a vector from the line holding the
  * first end a, the first and last vectors masked, so a run has no scalar
- * head or tail (they took about a tenth of cloth-100's time). The
- * operations of run_pair_d on each spring, in the same order: the same
- * bits. Lanes outside the run load nothing and store nothing. */
+ * head or tail (those took a sizeable share of a cloth's time:
+ * bench/HISTORY.md). The operations of run_pair_d on each spring, in the
+ * same order: the same bits. Lanes outside the run load nothing and store
+ * nothing. */
 __attribute__((target("avx512f"), always_inline)) static inline void
 run_pair_512_d(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd, const double *rest,
                size_t len, double *Fk, const bool uni, const bool apart, const int d, exitq *q)
@@ -537,8 +538,8 @@ __attribute__((target("avx512f"))) static void run_pair_512(double *rb, size_t S
 
 /* run_pair_d with ks and kd read once where the run's springs share them,
  * the springs before the first whose first end starts a cache line apart:
- * from there on, a vector of first ends never straddles two lines (about
- * 0.9 × the time of cloth-100, bench/README.md). The same operations on
+ * from there on, a vector of first ends never straddles two lines (faster:
+ * bench/README.md; figures in bench/HISTORY.md). The same operations on
  * each spring. */
 static FUSED_INLINE void run_pair(double *rb, size_t S, size_t a, size_t b, const double *ks, const double *kd,
                                   const double *rest, size_t len, double *Fk, bool uni, const bool apart, const int d,
