@@ -3,6 +3,7 @@
  * The window, the sweep and the kernels of fused_kernels.h are one
  * translation unit because they inline into each other in every clone of
  * the sweep; the chain (chain.c) calls a sweep at a time. */
+
 /* The derivative [v | f/m] of a system whose forces are its springs and
  * per-particle forces (PSYS_FORCE_PER_PARTICLE with apply_rows), in one
  * pass over memory instead of one per force object plus copies.
