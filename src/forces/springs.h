@@ -1,5 +1,6 @@
-/* The spring set's internals, shared by the force object (force_spring.c)
- * and the fused derivative (spring_fused.c). */
+/* The spring set's internals, shared by the force object (force_spring.c),
+ * its plan (spring_plan.c) and the fused derivative (fast/fused.c,
+ * fast/chain.c). */
 #ifndef PSYS_SPRINGS_H
 #define PSYS_SPRINGS_H
 
@@ -33,7 +34,7 @@ typedef struct springs {
     double *mamp, *momega, *mphase;
     const psys_system *owner; /* for its particle count (the SoA scratch) */
     unsigned version;         /* changes with every change of the spring set */
-    /* The evaluation plan (springs_plan): springs regrouped into runs of
+    /* The evaluation plan (psys__springs_plan): springs regrouped into runs of
      * equal index offset and consecutive first particles, so that the force
      * loop reads and writes particles in contiguous blocks and vectorises.
      * Spring indices users see stay those of the arrays above. */
@@ -46,12 +47,13 @@ typedef struct springs {
     double *pks, *pkd, *prest;            /* parameters in plan order */
     size_t *pos;                          /* plan slot of spring k */
     size_t max_off;                       /* largest run_off */
-    /* The internal order of the particles (springs_plan): slot i holds
+    /* The internal order of the particles (psys__springs_plan): slot i holds
      * particle perm[i] (perm NULL: slot i is particle i). Runs, thread
      * shares, windows and SoA rows count in slots. A function of the
      * springs' ends alone, so a resumed run and every MPI rank get the same
      * order. perm covers perm_n particles; beyond the springs' largest
-     * index, slot = particle (springs_cover extends it as particles come). */
+     * index, slot = particle (springs_cover, spring_plan.c, extends it as
+     * particles come). */
     uint32_t *perm;
     size_t perm_n;
     /* Thread partition (springs_partition): thread t owns the particles
@@ -69,21 +71,21 @@ typedef struct springs {
      * psys__springs_prepare for the owner's particle count. */
     double *soa;
     size_t soa_cap;
-    /* The fused derivative's windows (spring_fused.c): ring_t rings of
+    /* The fused derivative's windows (fast/fused.c): ring_t rings of
      * 9·ring_w doubles (x, v, f components of ring_w consecutive particles,
      * particle p at slot p mod ring_w), sized by psys__springs_prepare_fused. */
     double *ring;
     size_t ring_w;
     int ring_t;
     /* The chain sweep's stage states, where one thread sweeps a set much
-     * longer than the stages' span (spring_fused.c, psys__fused_chain):
+     * longer than the stages' span (fast/chain.c, psys__fused_chain):
      * rings of stage_r particles instead of whole state vectors, so they
      * stay in cache and never go to memory. stage_len doubles allocated. */
     double *stage;
     size_t stage_len;
     /* The chain sweep or stage by stage, where the springs reach too far
      * for the chain to be the default: chosen by timing steps of each
-     * (spring_fused.c, chain_timed). Zero (calloc): nothing timed yet. */
+     * (fast/chain_tuner.c, chain_timed). Zero (calloc): nothing timed yet. */
     struct {
         bool keyed;          /* plan, n, T below hold */
         unsigned plan;       /* plan_version the timing is for */
@@ -96,7 +98,7 @@ typedef struct springs {
         double best[2];      /* shortest step of each mode (s) */
     } chain;
     /* Blocks whose leavings the fused sweeps held back into the run loops
-     * (spring_fused.c, holds_back), counted once per sweep: which systems
+     * (fast/fused.c, holds_back), counted once per sweep: which systems
      * take that path (tests). */
     atomic_size_t held;
 } springs;
@@ -117,6 +119,11 @@ static inline size_t psys__springs_ring_stride(size_t w) { return (w + 24 + 7) &
 
 /** Rest lengths at time t (rest[] itself without muscles). */
 const double *psys__springs_rest_now(springs *s, double t);
+/** Build the plan for the current spring set (spring_plan.c; allocates:
+ *  PSYS_ERR_NOMEM when it cannot). */
+psys_status psys__springs_plan(springs *s);
+/** Frees the plan's arrays and marks it not built. */
+void psys__springs_plan_free(springs *s);
 /** The plan, thread t's runs for *T threads among np particles (*T drops to
  *  1 when their runs overlap too much) and *T windows for the fused
  *  derivative; PSYS_ERR_NOMEM when they cannot be allocated. */
@@ -241,7 +248,7 @@ static inline void run_short(const double *X, const double *V, double *F, size_t
 #define SPRING_CLONES
 #endif
 
-/* On x86-64 with GCC or Clang: AVX-512 run loops (spring_fused.c,
+/* On x86-64 with GCC or Clang: AVX-512 run loops (fast/fused_kernels.h,
  * force_spring.c) where the CPU has AVX-512, eight springs to a vector with
  * the first and last vectors of a run masked. */
 #if defined(__GNUC__) && defined(__x86_64__)

@@ -294,61 +294,6 @@ psys_solver *psys_system_solver_create(psys_system *s, const char *name, psys_er
     return psys__solver_create_fast(name, &o, &f, s, err);
 }
 
-bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
-{
-    s->ode_perm = NULL;
-    /* Only a solver psys_system_solver_create made for s, of s's current
-     * size: any other ODE on s (a user's wrapper) may read the state by
-     * particle. */
-    const bool own = psys__solver_owner(solver) == s && psys__solver_size(solver) == 2 * s->n * (size_t)s->dim;
-    if (!own || !psys__solver_elementwise(solver) || s->nplanes || s->dist)
-        return false;
-    const char *env = getenv("PSYS_STATE_ORDER");
-    if (env && env[0] == '0')
-        return false;
-    size_t perm_n = 0;
-    unsigned plan = 0;
-    const uint32_t *perm = psys__fused_order(s, &perm_n, &plan);
-    if (!perm)
-        return false;
-    if (s->ode_epoch == s->epoch && s->ode_plan == plan) {
-        /* the masses and slots of the last step still hold (the order
-         * covers more particles only when some were added: a new epoch) */
-        s->ode_perm = perm;
-        s->ode_perm_n = perm_n;
-        return true;
-    }
-    s->ode_epoch = s->epoch - 1; /* not valid until filled */
-    if (s->ode_cap < s->n) {
-        double *m = psys__realloc(s->ode_mass, s->n, sizeof(double));
-        if (m)
-            s->ode_mass = m;
-        double *im = psys__realloc(s->ode_inv_mass, s->n, sizeof(double));
-        if (im)
-            s->ode_inv_mass = im;
-        uint32_t *slot = psys__realloc(s->ode_slot, s->n, sizeof(uint32_t));
-        if (slot)
-            s->ode_slot = slot;
-        if (!m || !im || !slot)
-            return false; /* the particles' order, which needs no more memory */
-        s->ode_cap = s->n;
-    }
-    const int nt = psys_system_effective_threads(s);
-    psys__order_copy(perm, perm_n, s->n, 1, s->mass, s->ode_mass, false, nt);
-    psys__order_copy(perm, perm_n, s->n, 1, s->inv_mass, s->ode_inv_mass, false, nt);
-    if (s->nctrl) /* the projection finds its particles' slots */
-        for (size_t i = 0; i < s->n; i++)
-            s->ode_slot[i < perm_n ? perm[i] : i] = (uint32_t)i;
-    s->ode_perm = perm;
-    s->ode_perm_n = perm_n;
-    s->ode_epoch = s->epoch;
-    s->ode_plan = plan;
-    return true;
-}
-
-void psys__state_order_end(psys_system *s) { s->ode_perm = NULL; }
-
-
 psys_status psys_system_compute_forces(psys_system *s, double *f)
 {
     psys_force_eval e;

@@ -22,20 +22,23 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cd "$src"
 marker='vectorised (tests/cli/vectorised.sh)'
-mapfile -t marked < <(grep -n -F "$marker" src/*.c src/*.h | cut -d: -f1,2)
+shopt -s nullglob
+# src/ and its folders (src/fast/: the fused spring path)
+sources=(src/*.c src/*.h src/*/*.c src/*/*.h)
+mapfile -t marked < <(grep -n -F "$marker" "${sources[@]}" | cut -d: -f1,2)
 [ "${#marked[@]}" -ge 5 ] || { echo "vectorised: expected at least 5 marked loops, found ${#marked[@]}"; exit 1; }
 # the translation units that compile them (a header's loops: its includers)
 units=$(for m in "${marked[@]}"; do
     f=${m%%:*}
     case $f in
-    *.h) grep -l "#include \"$(basename "$f")\"" src/*.c ;;
+    *.h) grep -l "#include \"$(basename "$f")\"" src/*.c src/*/*.c ;;
     *) echo "$f" ;;
     esac
 done | sort -u)
 report="$work/report"
 : >"$report"
 for u in $units; do
-    "$cc" "$@" -Iinclude -fopt-info-vec-optimized="$work/one" -c "$u" -o "$work/unit.o"
+    "$cc" "$@" -Iinclude -Isrc -fopt-info-vec-optimized="$work/one" -c "$u" -o "$work/unit.o"
     cat "$work/one" >>"$report"
 done
 fail=0
