@@ -31,7 +31,7 @@ mapfile -t marked < <(grep -n -F "$marker" "${sources[@]}" | cut -d: -f1,2)
 units=$(for m in "${marked[@]}"; do
     f=${m%%:*}
     case $f in
-    *.h) grep -l "#include \"$(basename "$f")\"" src/*.c src/*/*.c ;;
+    *.h) grep -l "#include \"${f#src/}\"" src/*.c src/*/*.c ;;
     *) echo "$f" ;;
     esac
 done | sort -u)
