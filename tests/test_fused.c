@@ -223,9 +223,10 @@ static double *generic_derivative(psys_system *s, const double *y)
 {
     psys_ode o = psys_system_ode(s);
     double *ydot = calloc(o.size, sizeof *ydot);
-    setenv("PSYS_FUSED", "0", 1);
+    const psys__switches sw = s->sw;
+    s->sw.fused = '0'; /* PSYS_FUSED=0 for this evaluation */
     CHECK(o.derivative(o.ctx, psys_system_time(s), y, ydot) == PSYS_OK);
-    unsetenv("PSYS_FUSED");
+    s->sw = sw;
     return ydot;
 }
 
@@ -241,9 +242,10 @@ static double *fused_derivative(psys_system *s, const double *y, int threads)
     size_t nd = o.size / 2;
     psys__sys_eval(s, psys_system_time(s), y, y + nd, &e);
     bool used = false;
-    setenv("PSYS_FUSED", "1", 1);
+    const psys__switches sw = s->sw;
+    s->sw.fused = '1'; /* PSYS_FUSED=1 for this evaluation */
     CHECK(psys__fused_derivative(s, &e, y, ydot, NULL, &used) == PSYS_OK);
-    unsetenv("PSYS_FUSED");
+    s->sw = sw;
     CHECK(used);
     return ydot;
 }
@@ -1132,11 +1134,19 @@ static void avx512_switch(void)
 #else
     const bool cpu = false;
 #endif
-    CHECK(psys__springs_avx512() == cpu);
+    /* read when a system is created, and kept by it */
+    psys_system *unset = psys_system_create(3, NULL);
+    CHECK(psys__springs_avx512(unset) == cpu);
     setenv("PSYS_SPRING_PLAIN", "0", 1);
-    CHECK(psys__springs_avx512() == cpu);
+    psys_system *zero = psys_system_create(3, NULL);
+    CHECK(psys__springs_avx512(zero) == cpu);
     setenv("PSYS_SPRING_PLAIN", "1", 1);
-    CHECK(!psys__springs_avx512());
+    psys_system *plain = psys_system_create(3, NULL);
+    CHECK(!psys__springs_avx512(plain));
+    CHECK(psys__springs_avx512(unset) == cpu);
+    psys_system_destroy(unset);
+    psys_system_destroy(zero);
+    psys_system_destroy(plain);
     if (keep)
         setenv("PSYS_SPRING_PLAIN", keep, 1);
     else
@@ -1174,7 +1184,9 @@ static void holds_back_where_large(void)
     char *keep = was ? strdup(was) : NULL;
     unsetenv("PSYS_SPRING_PLAIN");
     unsetenv("PSYS_FUSED");
-    const bool k512 = psys__springs_avx512();
+    psys_system *probe = psys_system_create(3, NULL);
+    const bool k512 = psys__springs_avx512(probe);
+    psys_system_destroy(probe);
     for (int chain = 0; chain < 2; chain++) {
         CHECK((held_after_steps(rope(40000, 3), chain) > 0) == k512);
         CHECK(held_after_steps(rope(30000, 3), chain) == 0);

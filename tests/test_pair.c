@@ -403,6 +403,7 @@ static void sort_lists(void)
 {
     enum { CAP = 640 };
     uint32_t *a = malloc(CAP * sizeof *a), *b = malloc(CAP * sizeof *b);
+    psys_system *sys = psys_system_create(3, NULL); /* its switches: PSYS_SCAN_PLAIN */
     uint64_t st = 12345;
     for (int kind = 0; kind < 4; kind++)
         for (size_t n = 0; n <= 600; n++) {
@@ -412,10 +413,11 @@ static void sort_lists(void)
                 a[i] = kind == 0 ? r : kind == 1 ? 5000 + r % 900 : kind == 2 ? r % 7 : UINT32_MAX - r % 3;
             }
             memcpy(b, a, CAP * sizeof *a);
-            psys__pair_sort_list(a, n);
+            psys__pair_sort_list(sys, a, n);
             qsort(b, n, sizeof *b, cmp_u32);
             CHECK(memcmp(a, b, CAP * sizeof *a) == 0);
         }
+    psys_system_destroy(sys);
     free(a);
     free(b);
 }

@@ -55,6 +55,24 @@ typedef struct psys__box {
     double len[3];        /* hi - lo */
 } psys__box;
 
+/** The environment switches (docs/api.md#environment-switches), read once
+ *  when a system is created (settings.c). Each only picks between code
+ *  paths that give the same bits. */
+typedef struct psys__switches {
+    char fused;            /* PSYS_FUSED's first character: '0' never the fused path, '1' wherever it applies */
+    char chain;            /* PSYS_CHAIN's: '0' stage by stage, '1' the chain sweep without timing */
+    bool spring_plain;     /* PSYS_SPRING_PLAIN=1: no AVX-512 spring loops */
+    bool spring_order_off; /* PSYS_SPRING_ORDER=0: springs keep the particles' numbering */
+    bool state_order_off;  /* PSYS_STATE_ORDER=0: the solver's state stays in particle order */
+    bool scan_plain;       /* PSYS_SCAN_PLAIN set: the portable neighbour scan and sort */
+    bool window_double;    /* PSYS_WINDOW_DOUBLE set: double candidate windows */
+    bool group_off;        /* PSYS_GROUP_OFF set: the pair row kernel only */
+    bool group8_off;       /* PSYS_GROUP8_OFF set: no eight-row pair groups */
+} psys__switches;
+
+/** The switches as the environment sets them now. */
+psys__switches psys__switches_from_env(void);
+
 struct psys_system {
     int dim;
     size_t n, cap;
@@ -79,6 +97,7 @@ struct psys_system {
     size_t ncharge, charge_cap;
     psys__box box;         /* simulation box (box.c) */
     int threads;           /* threads for parallel force evaluation, 0 = OpenMP default */
+    psys__switches sw;     /* the environment switches, read at creation */
     struct psys__dist *dist; /* MPI decomposition (mpi.c, PSYS_MPI builds), NULL = serial */
     const unsigned char *own_mark; /* MPI domain decomposition (mpi_domain.c): 1 for the particles this
                                       rank owns (pair rows to compute), 0 for ghosts; NULL = all */

@@ -19,6 +19,7 @@ psys_system *psys_system_create(int dim, psys_error *err)
         return NULL;
     }
     s->dim = dim;
+    s->sw = psys__switches_from_env();
     s->ode_epoch = s->epoch - 1; /* no masses in the springs' order filled yet */
     psys__ok(err);
     return s;

@@ -77,10 +77,9 @@ bool psys__chain_takes(psys_system *sys, int stages, fused *fz, bool ask)
     if (stages < 2 || stages > CHAIN_MAX_STAGES || sys->nctrl || !psys__fused_takes(sys, fz))
         return false;
     springs *s = sys->springs;
-    const char *env = getenv("PSYS_CHAIN");
-    if ((env && env[0] == '0') || s->nm != 0)
+    if (sys->sw.chain == '0' || s->nm != 0)
         return false;
-    if (env && env[0] == '1')
+    if (sys->sw.chain == '1')
         return true;
     /* the plan's reach (an allocation failure: no, and the stage path reports it) */
     if (psys__springs_prepare_rings(s, sys->n, 1) != PSYS_OK)

@@ -78,11 +78,10 @@ bool psys__fused_takes(const psys_system *s, fused *fz)
      * declines systems with planes, so this does not happen) */
     if (s->nplanes && s->ode_perm)
         return false;
-    const char *force = getenv("PSYS_FUSED");
-    if (force && force[0] == '0')
+    if (s->sw.fused == '0')
         return false;
-    fz->forced = force && force[0] == '1';
-    fz->k512 = psys__springs_avx512();
+    fz->forced = s->sw.fused == '1';
+    fz->k512 = psys__springs_avx512(s);
     bool after = false;
     fz->npre = fz->npost = 0;
     for (size_t i = 0; i < s->nforces; i++) {

@@ -25,8 +25,7 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
     const bool own = psys__solver_owner(solver) == s && psys__solver_size(solver) == 2 * s->n * (size_t)s->dim;
     if (!own || !psys__solver_elementwise(solver) || s->nplanes || s->dist)
         return false;
-    const char *env = getenv("PSYS_STATE_ORDER");
-    if (env && env[0] == '0')
+    if (s->sw.state_order_off)
         return false;
     size_t perm_n = 0;
     unsigned plan = 0;

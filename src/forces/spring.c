@@ -221,10 +221,9 @@ void psys__springs_truncate(void *set, size_t n)
  * run_short instead of the vector loops. */
 
 #if SPRING_AVX512
-bool psys__springs_avx512(void)
+bool psys__springs_avx512(const psys_system *sys)
 {
-    const char *plain = getenv("PSYS_SPRING_PLAIN");
-    return __builtin_cpu_supports("avx512f") && !(plain && plain[0] == '1');
+    return __builtin_cpu_supports("avx512f") && !(sys && sys->sw.spring_plain);
 }
 
 /* run_forces_d on AVX-512 (F at 0..len): eight springs to a vector from
@@ -463,7 +462,7 @@ static void springs_apply(void *data, const psys_force_eval *e, double *f)
             T = 1;
     }
     double *Fs = s->soa + (size_t)(2 * e->dim) * s->soa_cap;
-    const bool k512 = psys__springs_avx512();
+    const bool k512 = psys__springs_avx512(s->owner);
     if (T <= 1) {
         soa_gather(s, e, f, 0, e->n);
         springs_runs(s, e->dim, Fs, 0, s->nruns, 0, 0, false, k512);

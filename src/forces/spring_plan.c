@@ -252,8 +252,8 @@ psys_status psys__springs_plan(springs *s)
      * at least twice as close on average (bench/README.md).
      * PSYS_SPRING_ORDER=0 in the environment keeps the particles' own
      * (benchmarks compare the two). */
-    const char *env = getenv("PSYS_SPRING_ORDER");
-    if (S >= SPRING_ORDER_MIN && p.nruns * SPRING_SHORT > S && !(env && env[0] == '0')) {
+    const bool own_order = s->owner && s->owner->sw.spring_order_off;
+    if (S >= SPRING_ORDER_MIN && p.nruns * SPRING_SHORT > S && !own_order) {
         size_t m = 0;
         for (size_t k = 0; k < S; k++) {
             m = s->a[k] + (size_t)1 > m ? s->a[k] + (size_t)1 : m;

@@ -254,10 +254,10 @@ static inline void run_short(const double *X, const double *V, double *F, size_t
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
 #define SPRING_AVX512 1
-/** Whether the AVX-512 run loops run: the CPU has AVX-512F and the
- *  environment does not set PSYS_SPRING_PLAIN=1 (the compiler's loops;
- *  tests, benchmarks). */
-bool psys__springs_avx512(void);
+/** Whether the AVX-512 run loops run for the springs of sys (NULL: a copy
+ *  without a system): the CPU has AVX-512F and sys was not created with
+ *  PSYS_SPRING_PLAIN=1 (the compiler's loops; tests, benchmarks). */
+bool psys__springs_avx512(const psys_system *sys);
 
 /* The address n doubles after p (n < 0: before), which may lie outside p's
  * array: only for lanes a mask keeps out of every access. */
@@ -323,6 +323,10 @@ psys__spring_g8(const double *ra, ptrdiff_t o, size_t S, const spring_par8 *p, s
 
 #else
 #define SPRING_AVX512 0
-static inline bool psys__springs_avx512(void) { return false; }
+static inline bool psys__springs_avx512(const psys_system *sys)
+{
+    (void)sys;
+    return false;
+}
 #endif
 #endif

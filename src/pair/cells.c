@@ -407,12 +407,12 @@ __attribute__((target("avx512f"))) static size_t fill_line(pair_grid *g, const s
  * two sums add at most (1 + u)³. No float window where that margin passes a
  * thousandth of rl2 (huge coordinates against the radius) or with
  * PSYS_WINDOW_DOUBLE set (so the tests reach the double window). */
-static win_mode win_float_limit(double rl2, double B)
+static win_mode win_float_limit(double rl2, double B, bool want_double)
 {
     win_mode wm = {false, 0};
     const double u = 0x1p-24, rl = sqrt(rl2), E = (2 * B + rl) * u * 1.001;
     const double hi = (rl2 + 3.5 * rl * E + 3 * E * E) * (1 + 4 * u);
-    if (!(hi - rl2 <= 1e-3 * rl2) || getenv("PSYS_WINDOW_DOUBLE"))
+    if (!(hi - rl2 <= 1e-3 * rl2) || want_double)
         return wm;
     wm.f32 = true;
     wm.hi = nextafterf((float)hi, INFINITY);
@@ -424,7 +424,7 @@ size_t psys__pair_fill_by_cells(pair_force *p, const stencil *sc, const pair_ima
 {
     pair_grid *g = &p->grid;
     /* build coordinates lie within scale of 0, their images within 2·scale */
-    const win_mode wm = win_float_limit(rl2, 2 * scale);
+    const win_mode wm = win_float_limit(rl2, 2 * scale, p->sys->sw.window_double);
     const size_t nlines = (size_t)g->ncell[0] * (size_t)g->ncell[2];
     size_t longest = 0;
     if (nt < 1)

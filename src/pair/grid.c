@@ -289,12 +289,12 @@ bool psys__pair_grid_build(pair_force *p, const psys_force_eval *e, const pair_i
     /* full lists of every particle are sorted by transposing them (below),
      * not one by one, unless the AVX-512 sort does it as they are filled; a
      * domain's ghosts have no lists, so there they are sorted */
-    const bool transpose = !half && !p->sys->own_mark && !psys__pair_scan_has_avx512();
+    const bool transpose = !half && !p->sys->own_mark && !psys__pair_scan_has_avx512(p->sys);
     double per = g->per_particle * 1.2 + 4;
     if (!(per <= (double)n)) /* also NaN (a huge radius makes the density estimate inf·0) */
         per = (double)n;
     /* cell by cell where that runs (full lists, AVX-512, every axis pruned) */
-    bool by_cells = !half && !p->sys->own_mark && psys__pair_scan_has_avx512();
+    bool by_cells = !half && !p->sys->own_mark && psys__pair_scan_has_avx512(p->sys);
     for (int k = 0; k < d; k++)
         by_cells = by_cells && sc.prune[k];
 #ifdef PSYS_SCAN_AVX512

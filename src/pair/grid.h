@@ -101,7 +101,7 @@ bool psys__pair_grid_build(pair_force *p, const psys_force_eval *e, const pair_i
 
 /* ---- pair_scan.c ---- */
 /** Whether the AVX-512 scans and sorts run here (once per build). */
-bool psys__pair_scan_has_avx512(void);
+bool psys__pair_scan_has_avx512(const psys_system *sys);
 /** Sort a list of indices in place (tmp: SORT_MAX entries of scratch). */
 void psys__pair_sort_indices(uint32_t *a, size_t n, uint32_t *tmp);
 /** Fill every chunk's lists (2 or 3 dimensions; h: half lists); true if none overflowed its region. */

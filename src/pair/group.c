@@ -58,7 +58,7 @@ static bool group_wanted(const pair_force *p)
     /* PSYS_GROUP_OFF in the environment forces the row kernel, so the tests
      * cover both paths on any machine */
     return (p->law == PSYS_PAIR_LENNARD_JONES || p->law == PSYS_PAIR_SOFT_REPULSION)
-           && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && !getenv("PSYS_GROUP_OFF");
+           && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && !p->sys->sw.group_off;
 }
 
 #define AVX2 __attribute__((target("avx2,fma")))
@@ -321,10 +321,10 @@ AVX2 static void group_consts_of(const pair_force *p, const pair_image *m, group
 #define GROUP8_LJ_UNIT (-1)
 #define AVX512 __attribute__((target("avx512f,avx512vl,avx512dq")))
 
-static bool group8_wanted(void)
+static bool group8_wanted(const pair_force *p)
 {
     return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl")
-           && __builtin_cpu_supports("avx512dq") && !getenv("PSYS_GROUP8_OFF");
+           && __builtin_cpu_supports("avx512dq") && !p->sys->sw.group8_off;
 }
 
 typedef struct group8_consts {
@@ -629,7 +629,7 @@ bool psys__pair_group_lists(pair_force *p, size_t n, int nt)
 #if defined(PSYS_GROUP_AVX2)
     if (!group_wanted(p) || n > GROUP_N_MAX)
         return true;
-    const size_t width = group8_wanted() ? GROUP8 : GROUP, ng = n / width;
+    const size_t width = group8_wanted(p) ? GROUP8 : GROUP, ng = n / width;
     if (ng + 1 > g->gl_start_cap) {
         size_t *q = psys__realloc(g->gl_start, ng + 1, sizeof(size_t));
         if (!q)
@@ -710,7 +710,7 @@ bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x
     group_ctx x;
     group_consts_of(p, m, &x.c4);
     /* eight rows at a time where the CPU can, else four */
-    const int width = group8_wanted() ? GROUP8 : GROUP;
+    const int width = group8_wanted(p) ? GROUP8 : GROUP;
     if (!g->gl_ok || g->gl_width != width)
         return false; /* no interleaved lists for this width (psys__pair_group_lists) */
     if (width == GROUP8) {

@@ -489,8 +489,8 @@ size_t psys__pair_grid_moved(pair_force *p, const double *x, size_t n);
  *  scans: a superset of the owned particles whose lists hold c. */
 void psys__pair_grid_mark_near(const pair_grid *g, const pair_image *m, int d, uint32_t c, const unsigned char *own,
                                unsigned char *mark);
-/** Sort a list of indices ascending the way list builds do (exposed for the tests). */
-void psys__pair_sort_list(uint32_t *a, size_t n);
+/** Sort a list of indices ascending the way the list builds of sys do (exposed for the tests). */
+void psys__pair_sort_list(const psys_system *sys, uint32_t *a, size_t n);
 /** Grow grid per-particle storage to cap particles. */
 bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 

@@ -231,10 +231,10 @@ __attribute__((target("avx512f"))) static bool sort_avx512(uint32_t *a, size_t n
  * PSYS_SCAN_PLAIN in the environment forces the portable scan and the
  * sorting by transposition, so the tests cover both paths on any machine
  * (the results are the same). */
-bool psys__pair_scan_has_avx512(void)
+bool psys__pair_scan_has_avx512(const psys_system *sys)
 {
 #ifdef PSYS_SCAN_AVX512
-    return __builtin_cpu_supports("avx512f") && !getenv("PSYS_SCAN_PLAIN");
+    return __builtin_cpu_supports("avx512f") && !sys->sw.scan_plain;
 #else
     return false;
 #endif
@@ -348,7 +348,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
     {                                                                                                        \
         pair_grid *g = &p->grid;                                                                             \
         int over = 0;                                                                                        \
-        const bool use512 = psys__pair_scan_has_avx512();                                                               \
+        const bool use512 = psys__pair_scan_has_avx512(p->sys);                                                               \
         const unsigned char *own = p->sys->own_mark; /* MPI domain (mpi_domain.c): owned rows only */          \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1) reduction(|: over))        \
@@ -381,11 +381,11 @@ FILL_FN(psys__pair_fill_3, 3, false)
 FILL_FN(psys__pair_fill_2h, 2, true)
 FILL_FN(psys__pair_fill_3h, 3, true)
 
-void psys__pair_sort_list(uint32_t *a, size_t n)
+void psys__pair_sort_list(const psys_system *sys, uint32_t *a, size_t n)
 {
     uint32_t tmp[SORT_MAX];
 #ifdef PSYS_SCAN_AVX512
-    if (psys__pair_scan_has_avx512() && sort_avx512(a, n))
+    if (psys__pair_scan_has_avx512(sys) && sort_avx512(a, n))
         return;
 #endif
     psys__pair_sort_indices(a, n, tmp);
