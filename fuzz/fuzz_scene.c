@@ -28,7 +28,7 @@
 #include <string.h>
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-/* The loader's allocation-free JSON check (src/json_check.c, internal). */
+/* The loader's allocation-free JSON check (src/io/json_check.c, internal). */
 int psys__json_check(const char *text, size_t len, int max_depth, size_t *where);
 
 /* ASan defaults for the libFuzzer build (ignored without ASan). */

@@ -1,4 +1,4 @@
-/* The multigrid preconditioner of implicit-euler (src/amg.c): the V-cycle is
+/* The multigrid preconditioner of implicit-euler (src/solvers/amg.c): the V-cycle is
  * a symmetric positive-definite operator (conjugate gradient needs that),
  * exact on systems no larger than its coarsest level, and it cuts the
  * conjugate-gradient iterations of a stiff spring grid several-fold against

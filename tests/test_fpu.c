@@ -1,4 +1,4 @@
-/* psys_fpu_flush_subnormals and psys_fpu_flushes_subnormals (src/fpu.c):
+/* psys_fpu_flush_subnormals and psys_fpu_flushes_subnormals (src/base/fpu.c):
  * results below the smallest normal double become 0 with flushing on and
  * stay subnormal with it off; subnormal inputs keep their value either way
  * (flush to zero, not denormals are zero); threads created afterwards

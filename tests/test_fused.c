@@ -1,4 +1,4 @@
-/* The fused derivative (src/spring_fused.c) against the generic one: the
+/* The fused derivative (src/fast/fused.c) against the generic one: the
  * same bits for every system it accepts, at every thread count, through
  * every explicit solver; and the systems it must leave to the generic path. */
 #define _POSIX_C_SOURCE 200809L /* setenv */
@@ -107,7 +107,7 @@ static size_t *shuffled(size_t n)
 /* Runs of offsets 1 to 9, of lengths 1 to 40 at every position within a
  * cache line, half of them sharing ks and kd: the AVX-512 loops' masked
  * first and last vectors, and the near offsets' shifted second ends
- * (spring_fused.c, run_near_512_d). n = 3000 particles: the window (1,024
+ * (fast/fused.c, run_near_512_d). n = 3000 particles: the window (1,024
  * slots) wraps around within some runs. Two springs of zero length. */
 static void near_runs(psys_system *s, int dim)
 {
@@ -307,7 +307,7 @@ static const uint32_t *order_of(const psys_system *sys)
     return NULL;
 }
 
-/* The springs' internal order (src/force_spring.c): a sheet whose particles
+/* The springs' internal order (src/forces/spring.c): a sheet whose particles
  * come shuffled gets one, the sheet in its own order keeps that; and the
  * shuffled sheet's derivative is the sheet's, relabelled, to rounding (each
  * particle's spring forces are added in another order), on both paths
@@ -455,7 +455,7 @@ static psys_system *rope(size_t n, int dim)
  * 254 past a multiple of 256, gravity and drag: each block of 256 first
  * ends has a last run from its slot 255 on, 255 springs into the next
  * block, the farthest a run can reach past its block (chain_reach in
- * spring_fused.c). With off 512 that run reaches 1,022 past its block's
+ * fast/fused.c). With off 512 that run reaches 1,022 past its block's
  * start, beyond the window's 1,024 slots less the block before: the
  * sweep cannot hold that block's leavings back (exitq) and leaves them
  * at once. With off 85, on one thread rk4's last stage, 3 · 597 particles
@@ -559,7 +559,7 @@ static psys_system *sheet_2d(int nx, int ny)
  * patches between them) and for a system with muscles or controlled
  * particles, which the chain leaves to the stages. The ropes (3-D, 2-D) and
  * the 2-D sheet are long enough for the stage states to go through rings
- * (spring_fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
+ * (fast/fused.c, stage_rings): on 1 to 3 threads for the ropes, 1 for
  * the sheet; reach_edge has runs that reach as far as a sweep may read
  * (with offset 512, too far to hold a block's leavings back). The chain
  * reads the step's start from the system's own x and v
@@ -1173,7 +1173,7 @@ static size_t held_after_steps(psys_system *s, bool chain)
 }
 
 /* Which systems hold a block's leavings back into the AVX-512 run loops
- * (spring_fused.c, holds_back): 3-D ones of at least 32,768 particles by
+ * (fast/fused.c, holds_back): 3-D ones of at least 32,768 particles by
  * default, any size with PSYS_FUSED=1; never 2-D ones, ones with planes,
  * blocks whose runs reach too far (reach_edge with offset 512), or the
  * compiler's loops (PSYS_SPRING_PLAIN=1). A speed choice only (the same

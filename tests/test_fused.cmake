@@ -1,4 +1,4 @@
-# The fused derivative (src/spring_fused.c): the same bits as the generic one.
+# The fused derivative (src/fast/fused.c): the same bits as the generic one.
 psys_c_test(test_fused derivative_same_bits runs_same_bits chooses_path planes_same_bits chain_same_bits chain_timed shuffled_same_physics
   state_order_same_bits
   state_order_cache
@@ -27,7 +27,7 @@ foreach(variant "fused:PSYS_FUSED=1" "generic:PSYS_FUSED=0" "plain_spring:PSYS_F
   endforeach()
 endforeach()
 # And with every rk4 and midpoint step swept through memory at once (the
-# chain, src/spring_fused.c), forced for every system it can take.
+# chain, src/fast/fused.c), forced for every system it can take.
 add_test(NAME cli.determinism.chain
   COMMAND bash ${CMAKE_CURRENT_SOURCE_DIR}/cli/determinism.sh $<TARGET_FILE:psys_cli> ${PROJECT_SOURCE_DIR})
 set_tests_properties(cli.determinism.chain PROPERTIES ENVIRONMENT "PSYS_FUSED=1;PSYS_CHAIN=1")

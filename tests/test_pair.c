@@ -464,7 +464,7 @@ static psys_system *cloud_with_pair(int dim, size_t n, double size, int law, psy
 }
 
 /* Whether the grid's forces run four or eight rows at a time here
- * (pair_group.c: AVX2, not switched off). */
+ * (pair/group.c: AVX2, not switched off). */
 /* Evaluations of pair force i whose rows ran in the vector loops (src/sim/bench.h). */
 static size_t grouped_of(const psys_system *sys, size_t i)
 {
@@ -620,7 +620,7 @@ static void grid_equals_direct_dense(void)
  * (spacing 0.2, box 2, every position within half a skin of it; and all
  * lengths ten times that, with Lennard-Jones σ = 1): the
  * groups of eight consecutive rows lie along x, so many are near the faces
- * of x only and take the minimum image on that axis alone (pair_group.c),
+ * of x only and take the minimum image on that axis alone (pair/group.c),
  * others on all axes. The same forces and energy as direct, before and
  * after small moves. */
 static psys_system *lattice_with_pair(int law, psys_pair_method method, double scale)
@@ -764,7 +764,7 @@ static void grid_partial_matches_direct(void)
     }
 }
 
-/* The sparse partial loop (pair_group.c: the marked rows eight at a time
+/* The sparse partial loop (pair/group.c: the marked rows eight at a time
  * wherever they lie, their lists interleaved on the fly; where most rows of
  * the touched groups are marked, the groups as they are): 4,913 particles,
  * two spans of 4,096 rows, one and two threads. Rounds alternate between
@@ -817,7 +817,7 @@ static void grid_partial_sparse_groups(void)
     }
 }
 
-/* The grid's groups of rows (pair_group.c) follow the particles' numbering
+/* The grid's groups of rows (pair/group.c) follow the particles' numbering
  * where it is local (a lattice numbered row by row) and the cell order
  * where it is not (the same lattice numbered at random): both give
  * direct's forces bit for bit, through full evaluations, partial ones (15
@@ -1165,7 +1165,7 @@ static void minimum_image_far(void)
 }
 
 /* The same with many particles, so the grid's four-rows-at-a-time kernel
- * (pair_group.c) meets a partner one or several boxes off inside full
+ * (pair/group.c) meets a partner one or several boxes off inside full
  * groups, both in a cluster across the faces (groups with the image) and in
  * one in the middle of the box (groups first without it, flagged, then again
  * with it): grid still equals direct bit for bit, and the forces are the

@@ -8,12 +8,12 @@ psys_c_test(test_pair
 # Threads sleep rather than spin between parallel regions: ctest runs tests
 # side by side on few cores, where spinning threads starve each other.
 # The grid tests again with the portable candidate scan of the list builds
-# (pair_scan.c uses an AVX-512 one where the CPU has it): the same bits.
+# (pair/scan.c uses an AVX-512 one where the CPU has it): the same bits.
 foreach(case sort_lists grid_equals_direct_3d grid_equals_direct_periodic_3d grid_equals_direct_dense grid_cache_matches_direct thread_determinism_grid
              checkpoint_resume_bit_exact grid_lists_keep_radius)
   add_test(NAME test_pair.plain_scan.${case} COMMAND test_pair ${case})
 endforeach()
-# And with the row kernel (pair_group.c runs the grid's forces four rows at
+# And with the row kernel (pair/group.c runs the grid's forces four rows at
 # a time where the CPU has AVX2): the same bits.
 foreach(case grid_equals_direct_2d grid_equals_direct_3d grid_equals_direct_periodic_3d grid_equals_direct_lattice grid_partial_matches_direct
              grid_partial_keeps_unchanged_rows grid_cache_matches_direct minimum_image_far_groups thread_determinism_grid)

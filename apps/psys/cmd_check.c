@@ -42,7 +42,7 @@ int cmd_check(int argc, char **argv)
         cli_error("%s: %s", name, err.message);
         return EXIT_BAD_INPUT;
     }
-    /* A scene psys run would refuse (src/run.c counts the steps the same way). */
+    /* A scene psys run would refuse (src/io/run.c counts the steps the same way). */
     const psys_settings *cs = psys_scene_settings(scene);
     if (!cs->use_steps && strcmp(cs->integrator, "rk45") != 0) {
         double q = cs->duration / cs->dt;

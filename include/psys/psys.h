@@ -311,7 +311,7 @@ psys_status psys_system_spring(const psys_system *sys, size_t k, size_t *a, size
 /** Stability estimate for explicit solvers: ω_max = max over springs of
  *  sqrt(2 ks (1/m_a + 1/m_b)), with 1/m = 0 for fixed and controlled
  *  particles (0 when there are no springs). Explicit solvers are expected
- *  to go unstable for dt > 2/ω_max (src/stability.c, docs/trust.md). */
+ *  to go unstable for dt > 2/ω_max (src/sim/stability.c, docs/trust.md). */
 double psys_system_stiffest_omega(const psys_system *sys);
 
 /** The force class of gravity objects. */

@@ -81,7 +81,7 @@ struct psys_system {
     double *mass, *inv_mass;
     unsigned char *flags;
     char **ids;
-    size_t *id_index;      /* hash of ids (system.c): slot -> particle index + 1, 0 = empty */
+    size_t *id_index;      /* hash of ids (core/system.c): slot -> particle index + 1, 0 = empty */
     size_t id_index_cap;   /* slots (a power of 2, at least twice the ids), 0 = no index yet */
     size_t nids;           /* particles with an id (entries in id_index) */
     double t;
@@ -93,13 +93,13 @@ struct psys_system {
     psys__plane *planes;
     size_t nplanes, planes_cap;
     double *scratch;       /* 2·cap·dim doubles for collision rollback, allocated with planes */
-    double *charge;        /* per-particle charges (box.c), NULL until one is set; ncharge of them, 0 beyond */
+    double *charge;        /* per-particle charges (forces/box.c), NULL until one is set; ncharge of them, 0 beyond */
     size_t ncharge, charge_cap;
-    psys__box box;         /* simulation box (box.c) */
+    psys__box box;         /* simulation box (forces/box.c) */
     int threads;           /* threads for parallel force evaluation, 0 = OpenMP default */
     psys__switches sw;     /* the environment switches, read at creation */
     struct psys__dist *dist; /* MPI decomposition (mpi.c, PSYS_MPI builds), NULL = serial */
-    const unsigned char *own_mark; /* MPI domain decomposition (mpi_domain.c): 1 for the particles this
+    const unsigned char *own_mark; /* MPI domain decomposition (mpi/domain.c): 1 for the particles this
                                       rank owns (pair rows to compute), 0 for ghosts; NULL = all */
     /* During a step of psys__advance in the springs' internal order
      * (psys__state_order_begin): slot i of the ODE's state holds particle

@@ -7,7 +7,7 @@
 #include "solvers/solver_fast.h"
 
 /** The derivative [v | f/m] of sys at (e->t, y) in one pass over memory when
- *  its forces are springs and per-particle forces only (spring_fused.c),
+ *  its forces are springs and per-particle forces only (fast/fused.c),
  *  into ydot, or with pass (not NULL) applied to it instead of storing it:
  *  *used tells whether it did; the same bits as the generic path. */
 psys_status psys__fused_derivative(psys_system *sys, const psys_force_eval *e, const double *y, double *ydot,

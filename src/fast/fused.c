@@ -12,7 +12,7 @@
  * x, v and f into component arrays for the spring runs and back, copies v
  * and forms f/m: about ten sweeps over arrays that at 10⁶ particles live in
  * main memory. Here a window of ring_w consecutive particles slides along
- * the plan (force_spring.c): particles enter it (x, v into component rows,
+ * the plan (forces/spring.c): particles enter it (x, v into component rows,
  * f = 0 plus the forces listed before the springs), the runs of each block
  * of 256 first particles add their spring forces, and particles that no
  * later run touches leave it (forces listed after the springs, then v and

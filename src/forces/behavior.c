@@ -440,7 +440,7 @@ static void gather(const behavior *b, const double *src, double *out)
 
 /* The force on each of b's particles, out[i·d + c], from their positions and
  * velocities x, v gathered in b's order (the one evaluation for apply here
- * and for a domain decomposition's owner of the behaviour, mpi_bonded.c). */
+ * and for a domain decomposition's owner of the behaviour, mpi/bonded.c). */
 static void behavior_forces_of(const behavior *b, const double *x, const double *v, double *out)
 {
     int d = b->dim, nq = b->k * d, m = b->m;

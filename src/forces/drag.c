@@ -65,7 +65,7 @@ psys_status psys_system_add_drag(psys_system *sys, double kd)
 }
 
 /* drag_apply for particles in component rows (the fused derivative). */
-/* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
+/* Also built for AVX2 and AVX-512 where the CPU has them (forces/springs.h). */
 SPRING_CLONES
 static void drag_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
                       double *const *F, bool first)

@@ -5,28 +5,28 @@
 
 #include "core/core.h"
 
-/** Gravity object's acceleration (force_gravity.c). */
+/** Gravity object's acceleration (forces/gravity.c). */
 const double *psys__gravity_g(const void *data);
-/** Drag object's coefficient (force_drag.c). */
+/** Drag object's coefficient (forces/drag.c). */
 double psys__drag_kd(const void *data);
 /** A mouse spring's particle, constants, fixed target (dim numbers) and
- *  scripted path (*nframes frames of 1 + dim numbers; 0: none) (force_mouse.c). */
+ *  scripted path (*nframes frames of 1 + dim numbers; 0: none) (forces/mouse.c). */
 void psys__mouse_get(const void *data, size_t *particle, double *ks, double *kd, const double **target,
                      const double **frames, size_t *nframes);
-/** A pair force's definition, defaults resolved (force_pair.c). */
+/** A pair force's definition, defaults resolved (forces/pair.c). */
 const psys_pair_def *psys__pair_def(const void *data);
-/** A behaviour's definition as added, defaults resolved (force_behavior.c). */
+/** A behaviour's definition as added, defaults resolved (forces/behavior.c). */
 const psys_behavior_def *psys__behavior_def(const void *data);
 /** Built-in behaviour function i in table order (false past the end): its
  *  function, name, particle count and the NULL-terminated keys of its
- *  parameters in scenes (any out pointer may be NULL; force_behavior.c). */
+ *  parameters in scenes (any out pointer may be NULL; forces/behavior.c). */
 bool psys__behavior_builtin(size_t i, psys_behavior_function *f, const char **name, int *nparticles,
                             const char *const **keys);
 /** A pair force's particles were replaced (not just moved): rebuild its lists
- *  and forget its cached forces at the next evaluation (force_pair.c). */
+ *  and forget its cached forces at the next evaluation (forces/pair.c). */
 void psys__pair_invalidate(void *data);
 
-/* ---- spring set internals (force_spring.c) ---- */
+/* ---- spring set internals (forces/spring.c) ---- */
 /** The damped spring law's magnitude over |l|: with len2 = |l|², dot = l̇·l,
  *  [ks(|l| - r) + kd dot/|l|] / |l|, and 0 for a spring of zero length (no
  *  direction, no force); the force on the first end is -mag·l. The one
@@ -65,12 +65,12 @@ psys_status psys__springs_prepare(void *set);
  *  the loop's whole sequence of additions. */
 psys_status psys__springs_order(void *set, size_t np, size_t *rowptr, uint32_t *ent, uint64_t *seq);
 /** How MPI ranks read a bonded class's terms (psys_force_class.terms,
- *  mpi_bonded.c): a spring set's springs, or one behaviour. */
+ *  mpi/bonded.c): a spring set's springs, or one behaviour. */
 typedef enum psys__terms_kind { PSYS__TERMS_SPRINGS, PSYS__TERMS_BEHAVIOR } psys__terms_kind;
 struct psys__force_terms {
     psys__terms_kind kind;
 };
-/** Copy of behaviour force data (force_behavior.c; free() frees it). */
+/** Copy of behaviour force data (forces/behavior.c; free() frees it). */
 void *psys__behavior_clone(const void *data);
 /** A behaviour's particles (count, then each index). */
 int psys__behavior_count(const void *data);
@@ -79,7 +79,7 @@ size_t psys__behavior_particle(const void *data, int i);
  *  their positions and velocities gathered in its order (x, v: count·d). */
 void psys__behavior_forces(const void *data, const double *x, const double *v, double *out);
 
-/* ---- periodic box and pair forces (box.c, force_pair.c) ---- */
+/* ---- periodic box and pair forces (forces/box.c, forces/pair.c) ---- */
 /** Wrap free particles into the box on periodic axes (after accepted steps). */
 void psys__box_wrap(psys_system *s);
 /** Check pair force data (of class psys_pair_class or psys_pair_user_class)

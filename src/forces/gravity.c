@@ -92,7 +92,7 @@ psys_status psys_system_add_gravity(psys_system *sys, const double *g)
 }
 
 /* gravity_apply for particles in component rows (the fused derivative). */
-/* Also built for AVX2 and AVX-512 where the CPU has them (springs.h). */
+/* Also built for AVX2 and AVX-512 where the CPU has them (forces/springs.h). */
 SPRING_CLONES
 static void gravity_rows(const void *data, int dim, size_t count, const double *mass, const double *const *V,
                          double *const *F, bool first)

@@ -11,10 +11,10 @@
  *   user           F(r) = -dU/dr from a callback,                     g = F(r) / r
  * A pair at r = 0 has no direction and exerts no force (see psys_pair_def).
  *
- * Methods: `direct` visits all pairs in cache blocks; `grid` (pair_grid.c)
+ * Methods: `direct` visits all pairs in cache blocks; `grid` (pair/grid.c)
  * keeps Verlet neighbour lists built from cell lists, rebuilt only when the
- * two largest displacements add up to the skin; `barnes-hut` (pair_bh.c) walks a
- * quadtree/octree with opening angle theta. See pair.h for why results are
+ * two largest displacements add up to the skin; `barnes-hut` (pair/bh.c) walks a
+ * quadtree/octree with opening angle theta. See pair/pair.h for why results are
  * identical for every thread count and why grid equals direct bit for bit.
  * Storage is allocated when the force is created and grows only when an
  * evaluation finds more particles (or a rebuild needs more room); if it
@@ -326,7 +326,7 @@ static const rows_fn rows_fns[4][2] = VEC_TABLE(rows);
 #define ROWS_CHUNK 64
 
 /* Grid forces over full lists: four rows at a time where that runs
- * (pair_group.c; true, and x copied into xc too where xc is not NULL),
+ * (pair/group.c; true, and x copied into xc too where xc is not NULL),
  * else through rows_fns, in parallel by chunks of rows. changed, xc: see
  * psys__pair_group_forces. */
 static bool grid_rows(pair_force *p, const pair_image *m, const double *x, const double *w, size_t n,
@@ -499,7 +499,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         fn(p, m, x, w, n, NULL, ep, nt);
         return;
     }
-    /* the position records of pair_group.c match xcache only if this
+    /* the position records of pair/group.c match xcache only if this
      * evaluation says so below */
     const bool xq_cached = g->xq_cached, moved_ready = g->moved_ready;
     g->xq_cached = false;
@@ -596,7 +596,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
             p->stats.partial_rows += rows;
         }
     }
-    /* own (MPI domain decomposition, mpi_domain.c): only the owned rows, a
+    /* own (MPI domain decomposition, mpi/domain.c): only the owned rows, a
      * set fixed between redistributions (which invalidate the cache); the
      * ghosts' rows of the cache are zero */
     const unsigned char *rows = mark ? mark : own;
@@ -604,7 +604,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
         for (size_t i = 0; i < n; i++)
             if (!own[i])
                 memset(g->fcache + i * (size_t)d, 0, (size_t)d * sizeof(double));
-    bool records = false; /* pair_group.c's records now hold x */
+    bool records = false; /* pair/group.c's records now hold x */
     /* with every row computed, the copy of x into the records also fills
      * the forces' cache of positions, and the copy below is skipped */
     double *xc = rows ? NULL : g->xcache;

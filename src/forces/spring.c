@@ -204,7 +204,7 @@ void psys__springs_truncate(void *set, size_t n)
 }
 
 /* ---- the force loop ----
- * psys__springs_plan (spring_plan.c) regroups the springs into runs:
+ * psys__springs_plan (forces/spring_plan.c) regroups the springs into runs:
  * springs (lo + j, lo + off + j) for j < len, with lo < lo + off, ordered by block of 256 first particles,
  * then offset, then first particle. A cloth, rope or lattice built row by row
  * falls into runs as long as its rows (one per kind of neighbour), so the

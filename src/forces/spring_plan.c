@@ -1,7 +1,7 @@
 /* The spring set's run plan: springs regrouped into runs of equal offset
  * (plan_build), an internal Cuthill-McKee order for sets numbered out of
  * order, the windows and scratch the loops need, the order of additions and
- * the threads' shares of the runs. Apart from the physics (force_spring.c)
+ * the threads' shares of the runs. Apart from the physics (forces/spring.c)
  * because it is bookkeeping built once per spring set, not a loop. */
 #include "forces/springs.h"
 

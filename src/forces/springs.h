@@ -1,5 +1,5 @@
-/* The spring set's internals, shared by the force object (force_spring.c),
- * its plan (spring_plan.c) and the fused derivative (fast/fused.c,
+/* The spring set's internals, shared by the force object (forces/spring.c),
+ * its plan (forces/spring_plan.c) and the fused derivative (fast/fused.c,
  * fast/chain.c). */
 #ifndef PSYS_SPRINGS_H
 #define PSYS_SPRINGS_H
@@ -52,7 +52,7 @@ typedef struct springs {
      * shares, windows and SoA rows count in slots. A function of the
      * springs' ends alone, so a resumed run and every MPI rank get the same
      * order. perm covers perm_n particles; beyond the springs' largest
-     * index, slot = particle (springs_cover, spring_plan.c, extends it as
+     * index, slot = particle (springs_cover, forces/spring_plan.c, extends it as
      * particles come). */
     uint32_t *perm;
     size_t perm_n;
@@ -119,7 +119,7 @@ static inline size_t psys__springs_ring_stride(size_t w) { return (w + 24 + 7) &
 
 /** Rest lengths at time t (rest[] itself without muscles). */
 const double *psys__springs_rest_now(springs *s, double t);
-/** Build the plan for the current spring set (spring_plan.c; allocates:
+/** Build the plan for the current spring set (forces/spring_plan.c; allocates:
  *  PSYS_ERR_NOMEM when it cannot). */
 psys_status psys__springs_plan(springs *s);
 /** Frees the plan's arrays and marks it not built. */
@@ -249,7 +249,7 @@ static inline void run_short(const double *X, const double *V, double *F, size_t
 #endif
 
 /* On x86-64 with GCC or Clang: AVX-512 run loops (fast/fused_kernels.h,
- * force_spring.c) where the CPU has AVX-512, eight springs to a vector with
+ * forces/spring.c) where the CPU has AVX-512, eight springs to a vector with
  * the first and last vectors of a run masked. */
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>

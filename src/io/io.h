@@ -1,5 +1,5 @@
 /* The scene format's declarations (cJSON), shared by the io files only:
- * scene_load.c, scene_save.c, json_*.c. The layers below know nothing of
+ * io/scene_load.c, io/scene_save.c, json_*.c. The layers below know nothing of
  * JSON; the io files build systems through the C API and the accessors of
  * internal.h, and read them back the same way. */
 #ifndef PSYS_IO_H
@@ -9,13 +9,13 @@
 
 struct cJSON;
 
-/** JSON syntax check that allocates nothing (json_check.c): 0 valid, 1 syntax
+/** JSON syntax check that allocates nothing (io/json_check.c): 0 valid, 1 syntax
  *  error, 2 arrays/objects nested deeper than max_depth; *where (may be NULL)
  *  gets the offset where it stopped. Accepts no more than cJSON does. */
 int psys__json_check(const char *text, size_t len, int max_depth, size_t *where);
 
 /* ---- scene-format handlers per force type (one json_*.c file each) ---- */
-/** A scene being parsed (scene_load.c). */
+/** A scene being parsed (io/scene_load.c). */
 typedef struct psys__parse psys__parse;
 /** A scene being read: the system it builds and where failures go. */
 struct psys__parse {
@@ -33,28 +33,28 @@ typedef struct psys__force_io {
     psys_status (*save)(const psys_system *sys, const void *data, struct cJSON *arr);
 } psys__force_io;
 
-/** Scene form of gravity (json_gravity.c). */
+/** Scene form of gravity (io/json_gravity.c). */
 extern const psys__force_io psys__gravity_io;
-/** Scene form of drag (json_drag.c). */
+/** Scene form of drag (io/json_drag.c). */
 extern const psys__force_io psys__drag_io;
-/** Scene form of springs (json_spring.c). */
+/** Scene form of springs (io/json_spring.c). */
 extern const psys__force_io psys__spring_io;
-/** Scene form of mouse springs (json_mouse.c). */
+/** Scene form of mouse springs (io/json_mouse.c). */
 extern const psys__force_io psys__mouse_io;
-/** Scene form of built-in behaviours (json_behavior.c). */
+/** Scene form of built-in behaviours (io/json_behavior.c). */
 extern const psys__force_io psys__behavior_io;
-/** Scene form of built-in pair forces (json_pair.c). */
+/** Scene form of built-in pair forces (io/json_pair.c). */
 extern const psys__force_io psys__pair_io;
 
-/** All force types known to scenes, NULL-terminated (json_registry.c). */
+/** All force types known to scenes, NULL-terminated (io/json_registry.c). */
 extern const psys__force_io *const psys__force_types[];
 
-/** Parse the scene's top-level "box" (json_box.c; scene_load.c calls it before particles and forces). */
+/** Parse the scene's top-level "box" (io/json_box.c; io/scene_load.c calls it before particles and forces). */
 psys_status psys__parse_box(psys__parse *p, const struct cJSON *root);
-/** Add the system's box, if any, to the scene object root; false on out of memory (json_box.c). */
+/** Add the system's box, if any, to the scene object root; false on out of memory (io/json_box.c). */
 bool psys__save_box(const psys_system *sys, struct cJSON *root);
 
-/* ---- helpers for force parsers (scene_load.c) ---- */
+/* ---- helpers for force parsers (io/scene_load.c) ---- */
 /** The system being built. */
 psys_system *psys__parse_system(psys__parse *p);
 /** Fail with "PATH: what (got VALUE)" where VALUE is item printed. */
@@ -94,7 +94,7 @@ psys_status psys__parse_ref_item(psys__parse *p, const struct cJSON *item, const
 psys_status psys__parse_frames(psys__parse *p, const struct cJSON *item, const char *path, double **frames,
                                size_t *count);
 
-/* ---- helpers for force savers (scene_save.c) ---- */
+/* ---- helpers for force savers (io/scene_save.c) ---- */
 /** JSON array of frames (exact numbers). */
 struct cJSON *psys__frames_json(const double *frames, size_t count, int dim);
 /** Add to arr a JSON reference to particle i (its id, else its index). */
@@ -108,10 +108,10 @@ struct cJSON *psys__vec_json(const double *v, int dim);
 
 /* ---- shared parts of the scene format ---- */
 /** Read the optional "muscle" object of obj into out = {amplitude, omega,
- *  phase, phase_step} (phase_step only accepted when with_step; json_spring.c). */
+ *  phase, phase_step} (phase_step only accepted when with_step; io/json_spring.c). */
 psys_status psys__parse_muscle(psys__parse *p, const struct cJSON *obj, const char *path, bool with_step,
                                bool *present, double out[4]);
-/** Parse one element of the scene's "structures" array (json_structures.c). */
+/** Parse one element of the scene's "structures" array (io/json_structures.c). */
 psys_status psys__parse_structure(psys__parse *p, const struct cJSON *obj, const char *path);
 
 #endif

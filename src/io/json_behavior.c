@@ -147,5 +147,5 @@ static psys_status behavior_save(const psys_system *sys, const void *data, cJSON
 }
 
 /* User-defined behaviours have their own class and no scene form: saving a
- * system with one fails with PSYS_ERR_UNSUPPORTED (scene_save.c). */
+ * system with one fails with PSYS_ERR_UNSUPPORTED (io/scene_save.c). */
 const psys__force_io psys__behavior_io = {.type = "behavior", .cls = &psys_behavior_class, .parse = behavior_parse, .save = behavior_save};

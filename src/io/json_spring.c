@@ -1,6 +1,6 @@
 /* Scene form of springs: {"type": "spring", "a": ref, "b": ref, "ks", "kd",
  * "rest", "muscle": {...}}, one object per spring of the system's set; and
- * the "muscle" object shared with chains (json_structures.c). */
+ * the "muscle" object shared with chains (io/json_structures.c). */
 #include "io/io.h"
 
 #include <cjson/cJSON.h>

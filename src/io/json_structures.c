@@ -1,5 +1,5 @@
 /* Scene form of structures: the "structures" array, built by the builders
- * of structures.c, whose problems are reported at their JSON path. */
+ * of sim/structures.c, whose problems are reported at their JSON path. */
 #include "io/io.h"
 
 #include <cjson/cJSON.h>

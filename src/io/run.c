@@ -25,7 +25,7 @@ struct psys_run {
     double next_frame_t;   /* rk45: next output time */
     bool frame_now;
 #ifdef PSYS_MPI
-    psys__domain *dd;      /* the particles spread over MPI ranks (mpi_domain.c); sys is then its local system */
+    psys__domain *dd;      /* the particles spread over MPI ranks (mpi/domain.c); sys is then its local system */
 #endif
 };
 
@@ -254,7 +254,7 @@ psys_resume_state psys_run_resume_state(const psys_run *r)
 #ifdef PSYS_MPI
 #include "psys/psys_mpi.h"
 
-/* mpi_domain.c (needs MPI_Comm, so not in internal.h) */
+/* mpi/domain.c (needs MPI_Comm, so not in internal.h) */
 psys_status psys__domain_create(psys_system *g, const char *integrator, double tol, double cg_tol, int cg_maxit,
                                 double h_next, MPI_Comm comm, psys__domain **out, psys_error *err);
 

@@ -1,5 +1,5 @@
 /* Bonded forces (springs, behaviour functions) across the ranks of a domain
- * decomposition (mpi_bonded.c, docs/mpi.md "Bonded forces"). Internal to
+ * decomposition (mpi/bonded.c, docs/mpi.md "Bonded forces"). Internal to
  * the MPI build. */
 #ifndef PSYS_MPI_BONDED_H
 #define PSYS_MPI_BONDED_H

@@ -1,4 +1,4 @@
-/* The domain of an MPI run (overview: mpi_domain.h): its creation from
+/* The domain of an MPI run (overview: mpi/domain.h): its creation from
  * the scene every rank loaded, a step taken on every rank with a retry
  * when the ghosts could be incomplete, contact events across ranks, and
  * the gathering of the particles on rank 0. */

@@ -1,7 +1,7 @@
 /* MPI domain decomposition, the internals its files share: the domain's
- * state (struct psys__domain) and the calls between mpi_domain.c (creation,
- * stepping, gathering), mpi_decompose.c (the grid of ranks, migration) and
- * mpi_halo.c (the halo exchange and the local ODE). Compiled only with
+ * state (struct psys__domain) and the calls between mpi/domain.c (creation,
+ * stepping, gathering), mpi/decompose.c (the grid of ranks, migration) and
+ * mpi/halo.c (the halo exchange and the local ODE). Compiled only with
  * -DPSYS_MPI=ON; docs/mpi.md "Domain decomposition" describes it.
  *
  * The domain: the particles of a run spread over the ranks of a
@@ -37,7 +37,7 @@
  *
  * Same answers. The local system holds its particles in increasing global
  * index and computes pair-force rows only for the owned particles (the
- * own_mark of pair.h's methods), each row the serial sum over the same
+ * own_mark of pair/pair.h's methods), each row the serial sum over the same
  * partners in the same order (pairs beyond the cutoff add exactly nothing);
  * gravity and drag are per particle. So every owned particle's force, and
  * every explicit solver's update of it, is bit-identical to the serial run.
@@ -84,7 +84,7 @@ struct psys__domain {
     double lo[3], len[3]; /* histogram range along each axis */
     double delta;    /* ghost range: < 0 none, INFINITY every particle */
     double pair_delta; /* the pair forces' part of it (< 0: none) */
-    psys__bonds *bonds;/* springs and behaviours (mpi_bonded.c), NULL = none */
+    psys__bonds *bonds;/* springs and behaviours (mpi/bonded.c), NULL = none */
     double bond_ext; /* the longest bonded term along any axis at the last redistribution */
     bool all_ghosts; /* every particle a ghost from now on */
     /* controlled particles: every controller of the system (by increasing
@@ -138,7 +138,7 @@ struct psys__domain {
 #define GROW_BUF(field, cap, want) \
     ((D->grown = psys__grow((field), &(cap), (want), sizeof *(field))) != NULL && ((field) = D->grown, true))
 
-/* ---- mpi_decompose.c ---- */
+/* ---- mpi/decompose.c ---- */
 /** Ranks per axis for a system whose parts along each axis are len[k] long. */
 void psys__domain_choose_parts(psys__domain *D, const double *len);
 /** Local arrays for m particles (0 on success). */
@@ -148,7 +148,7 @@ int psys__domain_reserve_charges(psys_system *s, size_t m);
 /** Collective: move the particles to their boxes' ranks (0 on success on every rank). */
 int psys__domain_redistribute(psys__domain *D);
 
-/* ---- mpi_halo.c ---- */
+/* ---- mpi/halo.c ---- */
 /** Owners send their particles' x and v (in y) to the ranks holding them as ghosts (0 on success). */
 int psys__domain_halo_exchange(psys__domain *D, double *y);
 /** The solver of the local ODE, created or pointed at the new local particles (0 on success). */

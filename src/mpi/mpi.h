@@ -6,7 +6,7 @@
 #include "sim/sim.h"
 
 #ifdef PSYS_MPI
-/** A run's particles spread over ranks (mpi_domain.c). */
+/** A run's particles spread over ranks (mpi/domain.c). */
 typedef struct psys__domain psys__domain;
 /** Free a domain decomposition, its local system and solver (NULL is fine). */
 void psys__domain_free(psys__domain *D);

@@ -260,7 +260,7 @@ PAIR_INLINE void bh_walk(const pair_force *p, const int law, const int d, const 
     *uacc = us;
 }
 
-/* Instantiated per law, dimension and mode (see force_pair.c). Particles in
+/* Instantiated per law, dimension and mode (see forces/pair.c). Particles in
  * tree order: neighbours walk the same nodes. */
 #define BH_FN(name, LAW, D, WF, WU)                                                                          \
     static void name(pair_force *p, const psys_force_eval *e, const double *w, double *f, int nt)            \

@@ -1,8 +1,8 @@
 /* Full neighbour lists cell by cell (AVX-512, every axis pruned): the
  * candidates around a home cell are loaded once for all its particles, in a
  * sliding window along each line of cells (fill_line) or run by run
- * (fill_cell). pair_grid.c's build uses it where it runs; the lists are
- * those of pair_scan.c's fill, particle by particle. */
+ * (fill_cell). pair/grid.c's build uses it where it runs; the lists are
+ * those of pair/scan.c's fill, particle by particle. */
 #include "pair/grid.h"
 
 #include <stdlib.h>

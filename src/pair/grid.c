@@ -1,6 +1,6 @@
-/* Grid method of pair forces (overview: pair_grid.h): the grid's storage,
+/* Grid method of pair forces (overview: pair/grid.h): the grid's storage,
  * the cells (a counting sort of the particles into buckets) and the build
- * that fills the neighbour lists through pair_scan.c or pair_cells.c and
+ * that fills the neighbour lists through pair/scan.c or pair/cells.c and
  * sorts full lists by transposition where the AVX-512 sort does not run. */
 #include "pair/grid.h"
 

@@ -1,7 +1,7 @@
-/* Grid method of pair forces, the internals its files share: pair_grid.c
- * (storage, cells, the build), pair_scan.c (particle-by-particle scans and
- * the list sorts), pair_cells.c (the AVX-512 cell-by-cell fill) and
- * pair_moved.c (the skin check, the moved particles). The small inline
+/* Grid method of pair forces, the internals its files share: pair/grid.c
+ * (storage, cells, the build), pair/scan.c (particle-by-particle scans and
+ * the list sorts), pair/cells.c (the AVX-512 cell-by-cell fill) and
+ * pair/moved.c (the skin check, the moved particles). The small inline
  * helpers live here so that every file inlines them as before.
  *
  * The method: cell lists (spatial buckets) and Verlet neighbour lists with
@@ -10,7 +10,7 @@
  * A build sorts the particles into cells at least (cutoff + skin)/2 wide
  * (counting sort, so each cell lists its particles in increasing index) and
  * gives every particle the list of partners within cutoff + skin (all of
- * them, or only those of higher index: pair.h), sorted by index (the force
+ * them, or only those of higher index: pair/pair.h), sorted by index (the force
  * sum is then the direct method's, bit for bit). A particle scans the cells
  * within two cells of its own whose nearest point is within cutoff + skin of
  * it. The lists stay valid until the two largest displacements since the
@@ -28,7 +28,7 @@
  * list array, sized from the previous build's neighbours per particle; a
  * region that overflows makes the build resize the regions and run again
  * (this, and a growing system, are the only times the array grows). With
- * AVX-512, full lists are filled cell by cell instead (fill_by_cells, pair_cells.c):
+ * AVX-512, full lists are filled cell by cell instead (fill_by_cells, pair/cells.c):
  * each particle gets a slot as long as the last build's longest list plus
  * eight (or 1.2 times its mean plus twelve, if more), and a longer list
  * makes the build run again with slots that fit it. */
@@ -93,13 +93,13 @@ static inline double build_coord(const pair_grid *g, const pair_image *m, int k,
     return m->per[k] ? g->cell_lo[k] + cell_rel(g, m, k, x) : x;
 }
 
-/* ---- pair_grid.c ---- */
+/* ---- pair/grid.c ---- */
 /** Sort the particles into cells and fill their lists for positions e->x
  *  (psys__pair_grid_update calls it when the lists no longer hold). False if
  *  storage could not grow. */
 bool psys__pair_grid_build(pair_force *p, const psys_force_eval *e, const pair_image *m, bool half);
 
-/* ---- pair_scan.c ---- */
+/* ---- pair/scan.c ---- */
 /** Whether the AVX-512 scans and sorts run here (once per build). */
 bool psys__pair_scan_has_avx512(const psys_system *sys);
 /** Sort a list of indices in place (tmp: SORT_MAX entries of scratch). */
@@ -117,7 +117,7 @@ bool psys__pair_fill_3h(pair_force *p, const stencil *sc, const pair_image *m, c
 /** a[0..n) sorted into dst (n <= 128); false, touching nothing, if longer. */
 __attribute__((target("avx512f"))) bool psys__pair_sort_avx512_to(const uint32_t *a, size_t n, uint32_t *dst);
 
-/* ---- pair_cells.c ---- */
+/* ---- pair/cells.c ---- */
 /** Full lists cell by cell into slots of room entries: the longest list, or
  *  SIZE_MAX if some list is too long for the scratch (or storage could not grow). */
 size_t psys__pair_fill_by_cells(pair_force *p, const stencil *sc, const pair_image *m, size_t n, size_t room,

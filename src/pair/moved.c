@@ -1,7 +1,7 @@
 /* What moved, for the grid: the skin check that keeps the lists or has
  * them rebuilt (psys__pair_grid_update), the particles whose positions
  * changed since the cached evaluation and the owned particles near a ghost,
- * both for force_pair.c's partial re-evaluation. */
+ * both for forces/pair.c's partial re-evaluation. */
 #include "pair/grid.h"
 
 #include <string.h>

@@ -1,5 +1,5 @@
-/* Internals shared by the pair-force files (force_pair.c, the grid's files
- * of pair_grid.h, pair_bh.c): the force object, the law kernels and the
+/* Internals shared by the pair-force files (forces/pair.c, the grid's files
+ * of pair/grid.h, pair/bh.c): the force object, the law kernels and the
  * minimum image.
  *
  * Determinism. Every method computes the force on particle i as a sum over
@@ -77,7 +77,7 @@ typedef struct pair_grid {
     size_t chunks_cap;
     double per_particle;   /* list entries per particle at the last build (region sizing) */
     size_t longest;        /* the longest list of the last cell-by-cell build (its room per particle) */
-    void *win;             /* win_n per-thread candidate windows of the cell-by-cell build (pair_cells.c) */
+    void *win;             /* win_n per-thread candidate windows of the cell-by-cell build (pair/cells.c) */
     size_t win_n;
     bool half;             /* lists hold only partners j > i (one thread evaluates), else all */
     bool want_full;        /* full lists from now on (a Jacobian was asked for) */
@@ -90,7 +90,7 @@ typedef struct pair_grid {
     uint32_t *changed;         /* cap: particles whose position changed (between builds; a build uses it as scratch) */
     bool cache_ok;
     size_t cache_n, cache_rebuilds;
-    /* displacement check (pair_moved.c): the two largest squared
+    /* displacement check (pair/moved.c): the two largest squared
      * displacements since the build at xcache's positions (disp_ok), and
      * those of the evaluation under way (disp_now); moved_n particles in
      * changed[] differ from xcache when moved_ready (set by the check for
@@ -98,11 +98,11 @@ typedef struct pair_grid {
     bool disp_ok, moved_ready;
     double disp[2], disp_now[2];
     size_t moved_n;
-    double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair_group.c,
+    double *xq_mem, *xq;   /* cap·4 positions as records (x, y, z or 0, 0) for pair/group.c,
                               xq 32-byte aligned in xq_mem */
     bool xq_cached;        /* xq holds xcache's positions, within the bounds xq_lo, xq_hi */
     double xq_lo[3], xq_hi[3];
-    /* pair_group.c's copy of the full lists, interleaved by groups of
+    /* pair/group.c's copy of the full lists, interleaved by groups of
      * gl_width rows (one load stream instead of one per row): the rows of
      * consecutive group slots, slot t being particle t or, with gl_cells,
      * the particle in slot t of the cell order (cell_list, from the same
@@ -268,7 +268,7 @@ PAIR_INLINE double pair_kernel(const pair_force *p, const int law, double r2, do
 }
 
 /* A pair's force terms, formed the same way on every path (the scalar
- * loops here, the row loops built for x86-64-v3 and AVX-512, pair_group.c's
+ * loops here, the row loops built for x86-64-v3 and AVX-512, pair/group.c's
  * four- and eight-lane loops): r² is dx0², then dx1² and dx2² each fused into the
  * sum, and each term g·dx_k is fused into its running sum. A fused
  * multiply-add rounds once where a product and a sum round twice; it is
@@ -464,7 +464,7 @@ static inline int pair_threads(const pair_force *p, double work)
  * not vectorise: for them the grid keeps half lists (partners j > i, each
  * pair evaluated once, in a serial sweep) up to two threads and full lists
  * from three on. Every variant adds each particle's contributions in
- * increasing partner order, so they all give the same bits (force_pair.c). */
+ * increasing partner order, so they all give the same bits (forces/pair.c). */
 static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
 {
     if (p->grid.want_full || p->law != PSYS_PAIR_USER)
@@ -473,7 +473,7 @@ static inline bool pair_grid_wants_half(const pair_force *p, size_t n)
     return pair_threads(p, per * (double)n) <= 2;
 }
 
-/* ---- pair_grid.c, pair_moved.c, pair_scan.c ---- */
+/* ---- pair/grid.c, pair/moved.c, pair/scan.c ---- */
 /** Make the neighbour lists valid for positions x (rebuild if the two largest
  *  displacements add up to the skin, the particle count, the box or the
  *  wanted kind of list (half, full) changed).
@@ -494,7 +494,7 @@ void psys__pair_sort_list(const psys_system *sys, uint32_t *a, size_t n);
 /** Grow grid per-particle storage to cap particles. */
 bool psys__pair_grid_reserve(pair_grid *g, size_t cap, int dim);
 
-/* ---- pair_group.c ---- */
+/* ---- pair/group.c ---- */
 /** Grid forces over the full lists of every row (or the marked ones) stored
  *  into out, four or eight rows at a time, from the positions x (particle
  *  major; copied as records, and into p->xsoa only where some row may go
@@ -512,7 +512,7 @@ bool psys__pair_group_forces(pair_force *p, const pair_image *m, const double *x
  *  reads (pair_grid.gl), where that path runs. False if storage could not grow. */
 bool psys__pair_group_lists(pair_force *p, size_t n, int nt);
 
-/* ---- pair_bh.c ---- */
+/* ---- pair/bh.c ---- */
 /** Build the tree for positions x and weights w (n particles). False if storage could not grow. */
 bool psys__pair_bh_build(pair_force *p, const double *x, const double *w, size_t n);
 /** Forces added into f, or (want_u) per-particle energies into p->epart, from the tree. */

@@ -1,7 +1,7 @@
 /* Neighbour lists particle by particle: each particle scans the cells
  * around its own (scan_plain, or scan_avx512 eight candidates at a time)
  * and its list is sorted (sort_indices, or the AVX-512 bitonic sort); the
- * fill_* functions write every chunk's lists for pair_grid.c's build. The
+ * fill_* functions write every chunk's lists for pair/grid.c's build. The
  * scans stay in this file with visit_d, which inlines them. */
 #include "pair/grid.h"
 
@@ -349,7 +349,7 @@ PAIR_INLINE size_t visit_d(const pair_force *p, const stencil *sc, const pair_im
         pair_grid *g = &p->grid;                                                                             \
         int over = 0;                                                                                        \
         const bool use512 = psys__pair_scan_has_avx512(p->sys);                                                               \
-        const unsigned char *own = p->sys->own_mark; /* MPI domain (mpi_domain.c): owned rows only */          \
+        const unsigned char *own = p->sys->own_mark; /* MPI domain (mpi/domain.c): owned rows only */          \
         (void)nt;                                                                                            \
         PSYS_OMP(omp parallel for schedule(dynamic, 1) num_threads(nt) if (nt > 1) reduction(|: over))        \
         for (size_t c = 0; c < nchunks; c++) {                                                               \

@@ -22,7 +22,7 @@ psys_status psys__block_build(psys_system *sys, const psys_block_def *def, psys_
 /** Build a wheel, as psys__chain_build. */
 psys_status psys__wheel_build(psys_system *sys, const psys_wheel_def *def, psys__problem *pb);
 
-/* ---- plane collisions across MPI ranks (collide.c, mpi_domain.c) ---- */
+/* ---- plane collisions across MPI ranks (sim/advance.c, mpi/domain.c) ---- */
 /** What psys__advance needs when the system is one rank's part of a larger
  *  one: the particles it moves, their global indices, and two collectives. */
 typedef struct psys__collide_hooks {

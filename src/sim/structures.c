@@ -1,7 +1,7 @@
 /* Structures (notes §5 "Structures", docs/scene-format.md#structures):
  * builders of mass-and-spring
  * chains, cloth sheets, beams, blocks and wheels, for the C API and the
- * scene's "structures" array (json_structures.c).
+ * scene's "structures" array (io/json_structures.c).
  *
  * Conventions (docs/scene-format.md, "Structures"):
  *   - particles are appended after the system's existing ones; grid particle

@@ -1,4 +1,4 @@
-/* Aggregation multigrid for implicit-euler's block systems (src/amg.h).
+/* Aggregation multigrid for implicit-euler's block systems (src/solvers/amg.h).
  *
  * Why: with stiff springs the system M - h ∂f/∂v - h² ∂f/∂x is dominated by
  * a graph Laplacian of the springs, whose condition number grows with the

@@ -1,5 +1,5 @@
 /* Aggregation multigrid preconditioner for the symmetric positive-definite
- * block-sparse systems of implicit-euler (src/solver_implicit.c).
+ * block-sparse systems of implicit-euler (src/solvers/implicit.c).
  *
  * Matrices are stored as their upper triangle in block rows: row i holds
  * blocks (i, j) with j >= i, the diagonal block first, columns ascending

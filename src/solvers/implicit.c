@@ -5,7 +5,7 @@
  *
  * solved by conjugate gradient on a block-sparse
  * matrix (block = dimension), preconditioned with one aggregation-multigrid
- * cycle (src/amg.c). Prescribed components (mass 0: fixed and
+ * cycle (src/solvers/amg.c). Prescribed components (mass 0: fixed and
  * controlled particles) are filtered out of the solve, as in the paper.
  * The sparsity pattern is built on the first step and reused; it is rebuilt
  * (the only allocation) only when a force reports a new pair of particles.

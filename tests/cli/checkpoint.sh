@@ -36,7 +36,7 @@ EOF
 
 # 3-D: a 30 × 30 sheet whose particles are numbered out of order (cell c is
 # particle 397·c mod 900), over 4,096 springs: the spring set takes an
-# internal order (src/force_spring.c), which the resumed run must find again.
+# internal order (src/forces/spring.c), which the resumed run must find again.
 {
     printf '{"psys": 1, "dim": 3, "dt": 0.0005, "steps": 1000,\n "particles": ['
     for ((q = 0; q < 900; q++)); do

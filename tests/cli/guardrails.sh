@@ -1,6 +1,6 @@
 # Numerical guard rails (docs/trust.md): an explicit solver run with dt above
 # the stability estimate 2/omega_max of the stiffest spring (omega_max² =
-# max 2 ks (1/m_a + 1/m_b), src/stability.c) gets one warning on stderr that
+# max 2 ks (1/m_a + 1/m_b), src/sim/stability.c) gets one warning on stderr that
 # suggests implicit-euler or a smaller dt; none for implicit-euler or rk45,
 # none with --quiet, none below the limit. And the estimate is right where it
 # matters: the highest mode of a free chain (exactly what it bounds) is

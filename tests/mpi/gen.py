@@ -113,7 +113,7 @@ def cloth():
 def cloth_shuffled():
     # A 28x28 sheet whose particles are numbered at random (4,426 springs, no
     # runs in that numbering): the spring set takes an internal order
-    # (src/force_spring.c), which every rank must find as the serial run does.
+    # (src/forces/spring.c), which every rank must find as the serial run does.
     rnd = random.Random(5)
     n = 28
     ids = list(range(n * n))        # cell -> particle
