@@ -8,7 +8,7 @@
 #
 #   sh bench/ab.sh OLD_BUILD NEW_BUILD [ROUNDS]     (ROUNDS default 5)
 #
-# BENCH_SECONDS (default 0.4) is each repetition's length.
+# BENCH_SECONDS (default 0.4) is each repetition's length; CASES picks some of the cases.
 set -eu
 OLD=$1
 NEW=$2
@@ -20,7 +20,7 @@ export OMP_WAIT_POLICY=PASSIVE
 median() { sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 ns() { sed 's/.*"ns_per_particle_step":\([0-9.]*\).*/\1/'; }
 stiff() { "$1/stiff_cloth" implicit-euler 0.016666666666666666 | sed 's/.*"ms_per_step": *\([0-9.]*\).*/\1/'; }
-CASES="cloth-100 cloth-1024 lj-melt stiff-cloth"
+CASES=${CASES:-"cloth-100 cloth-1024 lj-melt stiff-cloth"}
 for r in $(seq "$ROUNDS"); do
   for c in $CASES; do
     for side in old new; do
