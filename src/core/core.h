@@ -98,7 +98,7 @@ struct psys_system {
     psys__box box;         /* simulation box (forces/box.c) */
     int threads;           /* threads for parallel force evaluation, 0 = OpenMP default */
     psys__switches sw;     /* the environment switches, read at creation */
-    struct psys__dist *dist; /* MPI decomposition (mpi.c, PSYS_MPI builds), NULL = serial */
+    struct psys__dist *dist; /* MPI decomposition (core/comm_mpi.c, PSYS_MPI builds), NULL = serial */
     const unsigned char *own_mark; /* MPI domain decomposition (mpi/domain.c): 1 for the particles this
                                       rank owns (pair rows to compute), 0 for ghosts; NULL = all */
     /* During a step of psys__advance in the springs' internal order

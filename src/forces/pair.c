@@ -175,7 +175,7 @@ PAIR_INLINE void direct_block(const pair_force *p, const int law, const int d, c
                               const bool vec)
 {
     size_t i0 = b * DIRECT_IB, i1 = i0 + DIRECT_IB < n ? i0 + DIRECT_IB : n;
-    if (mark) { /* MPI (mpi.c): only the rows this rank owns */
+    if (mark) { /* MPI (core/comm_mpi.c): only the rows this rank owns */
         size_t i = i0;
         while (i < i1 && !mark[i])
             i++;
@@ -507,7 +507,7 @@ static void grid_eval(pair_force *p, const pair_image *m, const double *x, const
     g->disp_ok = false;
     const unsigned char *own = psys__dist_mark(p->sys);
     if (own && own != p->sys->own_mark) {
-        /* MPI, replicated state (mpi.c): this rank's rows only, which change
+        /* MPI, replicated state (core/comm_mpi.c): this rank's rows only, which change
          * at every evaluation, past the cache; the others are not read */
         if (!g->half && pair_can_vectorise(p, w, n)) {
             grid_rows(p, m, x, w, n, own, NULL, 0, NULL, g->fcache, nt);

@@ -25,7 +25,7 @@ static void par_copy(int nt, double *restrict dst, const double *restrict src, s
 
 /* Clear f, let every force object add into it, then the planes' contact
  * forces, which depend on the total applied force (notes §7.3). With MPI
- * (mpi.c), pair forces fill only this rank's rows and the rows are combined
+ * (core/comm_mpi.c), pair forces fill only this rank's rows and the rows are combined
  * before the contact forces: every rank ends with the serial f, bit for bit. */
 static psys_status accumulate(const psys_system *s, const psys_force_eval *e, double *f)
 {
