@@ -124,7 +124,7 @@ struct psys_system {
     psys_error err;
 };
 
-/* ---- the system's MPI communicator (comm.c, only in -DPSYS_MPI=ON builds; docs/mpi.md) ---- */
+/* ---- the system's MPI communicator (comm_mpi.c, only in -DPSYS_MPI=ON builds; docs/mpi.md) ---- */
 typedef struct psys__dist psys__dist;
 #ifdef PSYS_MPI
 /** Free a decomposition (NULL is fine). */

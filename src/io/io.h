@@ -54,7 +54,7 @@ psys_status psys__parse_box(psys__parse *p, const struct cJSON *root);
 /** Add the system's box, if any, to the scene object root; false on out of memory (io/json_box.c). */
 bool psys__save_box(const psys_system *sys, struct cJSON *root);
 
-/* ---- helpers for force parsers (io/scene_load.c) ---- */
+/* ---- helpers for force parsers (io/json_read.c) ---- */
 /** The system being built. */
 psys_system *psys__parse_system(psys__parse *p);
 /** Fail with "PATH: what (got VALUE)" where VALUE is item printed. */
@@ -94,7 +94,7 @@ psys_status psys__parse_ref_item(psys__parse *p, const struct cJSON *item, const
 psys_status psys__parse_frames(psys__parse *p, const struct cJSON *item, const char *path, double **frames,
                                size_t *count);
 
-/* ---- helpers for force savers (io/scene_save.c) ---- */
+/* ---- helpers for force savers (io/json_write.c) ---- */
 /** JSON array of frames (exact numbers). */
 struct cJSON *psys__frames_json(const double *frames, size_t count, int dim);
 /** Add to arr a JSON reference to particle i (its id, else its index). */
