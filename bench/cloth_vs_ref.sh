@@ -16,8 +16,7 @@ SIZES=${3:-"100 256 1024"}
 SECS=${BENCH_SECONDS:-0.4}
 LARGEST=$(printf '%s\n' $SIZES | sort -n | tail -1)
 HERE=$(cd "$(dirname "$0")" && pwd)
-REF_SRC=${REF_SRC:-$HERE/../../shared/peers/ref_cloth.c}
-[ -f "$REF_SRC" ] || REF_SRC=/work/shared/peers/ref_cloth.c
+REF_SRC=${REF_SRC:-$HERE/peers/ref_cloth.c}
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 REF="$WORK/ref_cloth"

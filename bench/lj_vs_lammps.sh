@@ -21,7 +21,7 @@ threads=${3:-1}
 scale=${4:-1}
 cells=$((20 * scale))
 atoms=$((4 * cells * cells * cells))
-peers=${PEERS:-$here/../../shared/peers}
+peers=${PEERS:-$here/peers}
 bench="$build/pair_bench"
 [ -x "$bench" ] || { echo "lj_vs_lammps: $bench not built" >&2; exit 2; }
 have_lmp=0

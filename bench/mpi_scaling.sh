@@ -89,7 +89,7 @@ run_case() {
 }
 
 # lammps_case NAME CELLS R: LAMMPS's LJ melt of 4·CELLS³ atoms on R ranks.
-PEERS=${PEERS:-$(dirname "$0")/../../shared/peers}
+PEERS=${PEERS:-$(dirname "$0")/peers}
 lammps_case() {
     local name=$1 cells=$2 r=$3 times=() t n
     for _ in $(seq "$REPS"); do

@@ -42,7 +42,7 @@ import tempfile
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 STEPS = ["cloth", "suite", "ceiling", "lj", "grid", "bh", "stiff", "callgrind"]
-PEERS = os.environ.get("PEERS", os.path.join(ROOT, "..", "shared", "peers"))
+PEERS = os.environ.get("PEERS", os.path.join(ROOT, "bench", "peers"))
 
 
 def log(msg):

@@ -18,7 +18,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD=${1:-build}
-PEERS=${PEERS:-../shared/peers}
+PEERS=${PEERS:-bench/peers}
 REPS=${REPS:-3}
 KS=${KS:-100}          # structural stiffness (N/m): the softest giving <= 2% mean strain
 KD=${KD:-0.1}          # structural damping (N s/m); bend springs get ks/10, kd/10
