@@ -34,10 +34,6 @@ size_t psys__fused_held(const psys_system *sys);
  *  done) when the system is not eligible. */
 psys_status psys__fused_chain(psys_system *sys, const psys_force_eval *e, const double *y0, int stages,
                               const psys__stage_pass *pass, bool *used);
-/** The springs' internal order (slot -> particle, covering *perm_n
- *  particles) when the fused derivative takes sys and the springs have one
- *  (builds the plan), with the plan's version in *plan; NULL otherwise. */
-const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n, unsigned *plan);
 /** Rows of `width` doubles between particle order and slot order: with
  *  to_particles false dst[i] = src[perm[i]] (i < perm_n; beyond, src[i]),
  *  else dst[perm[i]] = src[i]; n rows, on nt threads. */

@@ -8,6 +8,11 @@
 #include <stdint.h>
 #include <stdlib.h>
 
+/* The springs' internal order (slot -> particle, covering *perm_n
+ * particles) when the fused derivative takes sys and the springs have one
+ * (builds the plan), with the plan's version in *plan; NULL otherwise. */
+static const uint32_t *fused_order(psys_system *sys, size_t *perm_n, unsigned *plan);
+
 /* ---- The solver's state in the springs' internal order
  *
  * With the state itself in slot order (psys__state_order_begin), the
@@ -29,7 +34,7 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
         return false;
     size_t perm_n = 0;
     unsigned plan = 0;
-    const uint32_t *perm = psys__fused_order(s, &perm_n, &plan);
+    const uint32_t *perm = fused_order(s, &perm_n, &plan);
     if (!perm)
         return false;
     if (s->ode_epoch == s->epoch && s->ode_plan == plan) {
@@ -69,7 +74,7 @@ bool psys__state_order_begin(psys_system *s, const psys_solver *solver)
 
 void psys__state_order_end(psys_system *s) { s->ode_perm = NULL; }
 
-const uint32_t *psys__fused_order(psys_system *sys, size_t *perm_n, unsigned *plan)
+static const uint32_t *fused_order(psys_system *sys, size_t *perm_n, unsigned *plan)
 {
     fused fz;
     if (!psys__fused_takes(sys, &fz) || psys__springs_prepare_rings(sys->springs, sys->n, 1) != PSYS_OK)
